@@ -1,0 +1,181 @@
+//! The [`Brdf`] trait every model implements, and what its samplers return.
+
+use crate::error::DirectionError;
+use crate::geometry::{luminance, mirror, unit_direction, unit_direction_above};
+use crate::param::ParamSet;
+use crate::warp::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
+use core::fmt;
+use glam::{Vec2, Vec3};
+
+/// One sampled outgoing direction with everything an estimator needs (pbrt's `BSDFSample`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BrdfSample {
+    /// The sampled outgoing direction, local frame, unit, z > 0.
+    pub wo: Vec3,
+    /// For a continuous sample: the density of `wo` **per unit solid angle**, as
+    /// [`Brdf::pdf`] reports it. For a delta sample: the discrete probability with which the
+    /// delta lobe was chosen (1 when it is the only lobe).
+    pub pdf: f32,
+    /// f_r(wi, wo), RGB, 1/sr. For a delta sample: reflectance / cos θo (pbrt's convention).
+    pub f: Vec3,
+    /// The estimator weight f·cos θo / pdf, RGB.
+    pub weight: Vec3,
+    /// True when `wo` came from a Dirac delta lobe (its pdf is not a density).
+    pub delta: bool,
+}
+
+impl BrdfSample {
+    /// Builds a continuous sample from `eval` and `pdf` values (weight = f·cos/pdf), or `None`
+    /// when the direction is below the horizon or the pdf is not positive and finite.
+    #[inline]
+    #[must_use]
+    pub fn continuous(wo: Vec3, f: Vec3, pdf: f32) -> Option<Self> {
+        if !(wo.z > 0.0 && pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
+        Some(Self { wo, pdf, f, weight: f * (wo.z / pdf), delta: false })
+    }
+
+    /// Builds the delta sample toward `wo` with the given reflectance, chosen with probability
+    /// `choice_probability`.
+    #[inline]
+    #[must_use]
+    pub fn delta(wo: Vec3, reflectance: Vec3, choice_probability: f32) -> Option<Self> {
+        if !(wo.z > 0.0 && choice_probability > 0.0) {
+            return None;
+        }
+        Some(Self {
+            wo,
+            pdf: choice_probability,
+            f: reflectance / wo.z,
+            weight: reflectance / choice_probability,
+            delta: true,
+        })
+    }
+}
+
+/// Up to four directions where a model's f_r may peak for a given `wi` (the mirror direction,
+/// the normal, the retro-reflection direction...). The quadtree evaluates f_r at these points
+/// when bounding a node (SPEC §3); they are hints, not guarantees.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PeakHints {
+    dirs: [Vec3; 4],
+    len: usize,
+}
+
+impl PeakHints {
+    /// No hints.
+    #[must_use]
+    pub const fn new() -> Self {
+        Self { dirs: [Vec3::ZERO; 4], len: 0 }
+    }
+
+    /// Adds a hint if it is a finite direction strictly above the horizon and there is room.
+    pub fn push(&mut self, w: Vec3) {
+        if self.len < self.dirs.len() && w.z > 0.0 && w.is_finite() {
+            self.dirs[self.len] = w;
+            self.len += 1;
+        }
+    }
+
+    /// The hints.
+    #[must_use]
+    pub fn as_slice(&self) -> &[Vec3] {
+        &self.dirs[..self.len]
+    }
+
+    /// The default hints: the mirror direction r(wi) and the normal.
+    #[must_use]
+    pub fn mirror_and_normal(wi: Vec3) -> Self {
+        let mut h = Self::new();
+        h.push(mirror(wi));
+        h.push(Vec3::Z);
+        h
+    }
+}
+
+/// A bidirectional reflectance distribution function in the local shading frame (z = normal,
+/// x = tangent). `wi` points toward the light, `wo` toward the viewer; both unit, both away
+/// from the surface (SPEC §1).
+///
+/// Implementations are pure and `Sync`: samplers take their random numbers as arguments.
+pub trait Brdf: Send + Sync + fmt::Debug {
+    /// The registry name (`phong`, `ward`, ...).
+    fn name(&self) -> &'static str;
+
+    /// The parameter values this instance was built with (complete, in spec order).
+    fn params(&self) -> ParamSet;
+
+    /// f_r(wi, wo) of the continuous part, RGB, in 1/sr; no cosine factor.
+    ///
+    /// 0 when either direction is at or below the horizon (z ≤ 0) or not finite. Inputs need
+    /// only be approximately unit: every model renormalises them in f64. A delta part (see
+    /// [`Brdf::delta_reflectance`]) is not included: its value at any explicit pair is 0.
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Vec3;
+
+    /// The scalar density the samplers follow: the luminance of [`Brdf::eval`].
+    #[inline]
+    fn eval_luminance(&self, wi: Vec3, wo: Vec3) -> f32 {
+        luminance(self.eval(wi, wo))
+    }
+
+    /// True when the model has no continuous part at all (the perfect mirror): nothing to
+    /// tabulate, so building a quadtree for it is an error.
+    fn is_delta(&self) -> bool {
+        false
+    }
+
+    /// The reflectance of a Dirac delta lobe toward the mirror direction r(wi), RGB (0 when
+    /// the model has none, and for wi below the horizon).
+    fn delta_reflectance(&self, wi: Vec3) -> Vec3 {
+        let _ = wi;
+        Vec3::ZERO
+    }
+
+    /// Directions where f_r(wi, ·) may peak, used to bound f_r over a region (SPEC §3).
+    fn peak_hints(&self, wi: Vec3) -> PeakHints {
+        PeakHints::mirror_and_normal(wi)
+    }
+
+    /// Whether [`Brdf::sample`] is a model-specific importance sampler. When false, `sample`
+    /// and `pdf` are plain cosine-weighted sampling (the baseline of MODELS.md).
+    fn has_analytic_sampler(&self) -> bool {
+        false
+    }
+
+    /// Draws `wo` given `wi` from the model's own sampler: `uc` chooses a lobe, `u` places the
+    /// direction in it. Returns `None` when the drawn direction falls below the horizon (the
+    /// estimator then scores 0; nothing is re-drawn) or `wi` is not above the horizon.
+    /// The default is cosine-weighted sampling.
+    fn sample(&self, wi: Vec3, uc: f32, u: Vec2) -> Option<BrdfSample> {
+        let _ = uc;
+        if !(wi.z > 0.0) {
+            return None;
+        }
+        let wo = sample_cosine_hemisphere(u);
+        BrdfSample::continuous(wo, self.eval(wi, wo), cosine_hemisphere_pdf(wo.z))
+    }
+
+    /// The density with which [`Brdf::sample`] draws `wo` given `wi`, **per unit solid angle**
+    /// (continuous part only: 0 for a pure delta model). Agrees with the `pdf` of the samples.
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        if !(wi.z > 0.0) {
+            return 0.0;
+        }
+        cosine_hemisphere_pdf(wo.z)
+    }
+
+    /// [`Brdf::eval`] with its inputs checked: NaN, infinite and zero-length directions are
+    /// typed errors instead of a silent 0. Directions below the horizon are valid (f_r = 0).
+    fn try_eval(&self, wi: Vec3, wo: Vec3) -> Result<Vec3, DirectionError> {
+        let (wi, wo) = (unit_direction(wi)?, unit_direction(wo)?);
+        Ok(self.eval(wi, wo))
+    }
+
+    /// [`Brdf::sample`] with `wi` checked: it must be a finite, non-zero direction above the
+    /// horizon ([`DirectionError`] otherwise).
+    fn try_sample(&self, wi: Vec3, uc: f32, u: Vec2) -> Result<Option<BrdfSample>, DirectionError> {
+        let wi = unit_direction_above(wi)?;
+        Ok(self.sample(wi, uc, u))
+    }
+}

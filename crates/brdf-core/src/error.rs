@@ -1,0 +1,109 @@
+//! Typed errors: every bad input gets one of these, with a message that says what was wrong.
+
+use alloc::string::String;
+use core::fmt;
+
+/// What was wrong with a direction handed to the library.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DirectionError {
+    /// A component is NaN or infinite.
+    NotFinite,
+    /// The vector is zero, so it has no direction.
+    ZeroLength,
+    /// The direction is at or below the horizon (z ≤ 0 in the local frame) where it must not be.
+    BelowHorizon,
+    /// A tangent is parallel to the normal, so no frame can be built from the pair.
+    ParallelTangent,
+}
+
+impl fmt::Display for DirectionError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::NotFinite => "direction has a NaN or infinite component",
+            Self::ZeroLength => "direction has zero length",
+            Self::BelowHorizon => "direction is at or below the horizon (z <= 0 in the local frame)",
+            Self::ParallelTangent => "tangent is parallel to the normal",
+        })
+    }
+}
+
+impl core::error::Error for DirectionError {}
+
+/// What was wrong with a model parameter or a model name.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ParamError {
+    /// No model of this name is registered.
+    UnknownModel {
+        /// The name asked for.
+        name: String,
+    },
+    /// The model has no parameter of this name.
+    UnknownParam {
+        /// The model.
+        model: &'static str,
+        /// The name given.
+        name: String,
+        /// The names the model does have, comma-separated.
+        known: String,
+    },
+    /// An assignment was not of the form `name=value`.
+    Malformed {
+        /// The text as given.
+        text: String,
+    },
+    /// A value could not be parsed as a number, or had the wrong number of components.
+    BadValue {
+        /// The parameter.
+        name: &'static str,
+        /// The text as given.
+        text: String,
+        /// What was expected instead.
+        expected: &'static str,
+    },
+    /// A value is NaN or outside the parameter's range.
+    OutOfRange {
+        /// The parameter.
+        name: &'static str,
+        /// The offending value (one channel of an RGB value).
+        value: f32,
+        /// The range, written as in MODELS.md (for example `[0, 1]` or `(0, 1]`).
+        range: String,
+    },
+    /// Values that are each in range break a constraint between parameters.
+    Constraint {
+        /// The model.
+        model: &'static str,
+        /// The constraint that failed, in words.
+        message: String,
+    },
+}
+
+impl fmt::Display for ParamError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::UnknownModel { name } => write!(
+                f,
+                "unknown model `{name}` (run `brdf models` for the list)"
+            ),
+            Self::UnknownParam { model, name, known } => write!(
+                f,
+                "model `{model}` has no parameter `{name}` (it has: {known})"
+            ),
+            Self::Malformed { text } => {
+                write!(f, "malformed parameter `{text}`: expected name=value")
+            }
+            Self::BadValue {
+                name,
+                text,
+                expected,
+            } => write!(f, "parameter `{name}`: cannot read `{text}` as {expected}"),
+            Self::OutOfRange { name, value, range } => write!(
+                f,
+                "parameter `{name}` = {value} is out of its range {range}"
+            ),
+            Self::Constraint { model, message } => write!(f, "model `{model}`: {message}"),
+        }
+    }
+}
+
+impl core::error::Error for ParamError {}

@@ -1,0 +1,204 @@
+//! Direction helpers in the local shading frame (z = normal): validation, reflection, half
+//! vectors, spherical angles and luminance.
+
+use crate::error::DirectionError;
+use crate::math as m;
+use glam::{DVec3, Vec3};
+
+/// Rec. 709 luminance weights: Y = 0.2126 R + 0.7152 G + 0.0722 B (MODELS.md).
+pub const LUMINANCE: Vec3 = Vec3::new(0.2126, 0.7152, 0.0722);
+
+/// The luminance Y of an RGB value; the scalar that every sampler is proportional to.
+#[inline]
+#[must_use]
+pub fn luminance(rgb: Vec3) -> f32 {
+    rgb.dot(LUMINANCE)
+}
+
+/// Validates and normalises a direction given by a user or a file.
+///
+/// Errors: [`DirectionError::NotFinite`] for NaN or infinite components,
+/// [`DirectionError::ZeroLength`] for the zero vector. Any other finite vector, however short
+/// or long, is normalised exactly (in f64).
+/// See also [`unit_direction_above`], which also rejects the lower hemisphere.
+#[inline]
+pub fn unit_direction(v: Vec3) -> Result<Vec3, DirectionError> {
+    if !v.is_finite() {
+        return Err(DirectionError::NotFinite);
+    }
+    // Normalise in f64 so that tiny or huge (but finite) inputs keep their direction.
+    let d = v.as_dvec3();
+    let len = d.length();
+    if len == 0.0 {
+        return Err(DirectionError::ZeroLength);
+    }
+    Ok((d / len).as_vec3())
+}
+
+/// Like [`unit_direction`], and also rejects directions with z ≤ 0
+/// ([`DirectionError::BelowHorizon`]): use it for an incident direction `wi` given to a sampler.
+#[inline]
+pub fn unit_direction_above(v: Vec3) -> Result<Vec3, DirectionError> {
+    let w = unit_direction(v)?;
+    if w.z > 0.0 {
+        Ok(w)
+    } else {
+        Err(DirectionError::BelowHorizon)
+    }
+}
+
+/// The local-frame mirror direction r(w) = (−x, −y, z): reflection of `w` about the normal.
+#[inline]
+#[must_use]
+pub fn mirror(w: Vec3) -> Vec3 {
+    Vec3::new(-w.x, -w.y, w.z)
+}
+
+/// Reflects `w` about the unit vector `n`: 2(w·n)n − w (both pointing away from the surface).
+#[inline]
+#[must_use]
+pub fn reflect(w: Vec3, n: Vec3) -> Vec3 {
+    2.0 * w.dot(n) * n - w
+}
+
+/// The unit half vector h = (wi + wo)/|wi + wo|, or `None` when wi = −wo (no half vector).
+#[inline]
+#[must_use]
+pub fn half_vector(wi: Vec3, wo: Vec3) -> Option<Vec3> {
+    (wi + wo).try_normalize()
+}
+
+/// cos θ of a local-frame direction (its z component).
+#[inline]
+#[must_use]
+pub fn cos_theta(w: Vec3) -> f32 {
+    w.z
+}
+
+/// The unit direction with polar angle `theta` (from the normal) and azimuth `phi` (from x).
+#[inline]
+#[must_use]
+pub fn spherical_direction(theta: f32, phi: f32) -> Vec3 {
+    let (st, ct) = (m::sinf(theta), m::cosf(theta));
+    Vec3::new(st * m::cosf(phi), st * m::sinf(phi), ct)
+}
+
+/// The (θ, φ) of a unit direction: θ ∈ [0, π] from the normal, φ ∈ (−π, π] from x.
+/// Inverse of [`spherical_direction`] (φ is 0 at the poles).
+#[inline]
+#[must_use]
+pub fn spherical_angles(w: Vec3) -> (f32, f32) {
+    let theta = m::acos(f64::from(w.z).clamp(-1.0, 1.0)) as f32;
+    let phi = if w.x == 0.0 && w.y == 0.0 {
+        0.0
+    } else {
+        m::atan2f(w.y, w.x)
+    };
+    (theta, phi)
+}
+
+/// cos Δφ between the azimuths of two directions, 0 when either is the normal (MODELS.md).
+#[inline]
+#[must_use]
+pub fn cos_delta_phi(wi: Vec3, wo: Vec3) -> f32 {
+    cos_delta_phi64(wi.as_dvec3(), wo.as_dvec3()) as f32
+}
+
+/// f64 version of [`cos_delta_phi`], used inside the models.
+#[inline]
+#[must_use]
+pub(crate) fn cos_delta_phi64(wi: DVec3, wo: DVec3) -> f64 {
+    let (li, lo) = (wi.truncate().length(), wo.truncate().length());
+    if li == 0.0 || lo == 0.0 {
+        0.0
+    } else {
+        (wi.truncate().dot(wo.truncate()) / (li * lo)).clamp(-1.0, 1.0)
+    }
+}
+
+/// The pair (wi, wo) as f64 unit vectors when both are finite and strictly above the horizon,
+/// else `None` (where every BRDF is 0). This is every model's prologue: inputs need only be
+/// approximately unit, they are renormalised here in f64.
+#[inline]
+#[must_use]
+pub(crate) fn upper_pair(wi: Vec3, wo: Vec3) -> Option<(DVec3, DVec3)> {
+    if !(wi.z > 0.0 && wo.z > 0.0 && wi.is_finite() && wo.is_finite()) {
+        return None;
+    }
+    let (wi, wo) = (wi.as_dvec3(), wo.as_dvec3());
+    Some((wi / wi.length(), wo / wo.length()))
+}
+
+/// cos^n α of the angle between two f64 unit vectors, computed without cancellation:
+/// 1 − cos α = |a − b|²/2, then exp(n·ln(1 − d)). Clamped at 0 (cos α ≤ 0 gives 0, except
+/// n = 0 gives 1: pow(0, 0) = 1).
+#[inline]
+#[must_use]
+pub(crate) fn cos_power(a: DVec3, b: DVec3, n: f64) -> f64 {
+    let d = 0.5 * (a - b).length_squared();
+    if n == 0.0 {
+        return 1.0;
+    }
+    if d >= 1.0 {
+        return 0.0;
+    }
+    m::exp(n * m::ln_1p(-d))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unit_direction_rejects_bad_input() {
+        assert_eq!(
+            unit_direction(Vec3::new(f32::NAN, 0.0, 1.0)),
+            Err(DirectionError::NotFinite)
+        );
+        assert_eq!(unit_direction(Vec3::ZERO), Err(DirectionError::ZeroLength));
+        assert_eq!(
+            unit_direction_above(Vec3::new(1.0, 0.0, 0.0)),
+            Err(DirectionError::BelowHorizon)
+        );
+        let w = unit_direction(Vec3::new(0.0, 0.0, 1e-40)).unwrap();
+        assert_eq!(w, Vec3::Z);
+        let w = unit_direction(Vec3::new(3e38, 0.0, 3e38)).unwrap();
+        assert!((w.length() - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn spherical_round_trip() {
+        for &(t, p) in &[(0.3f32, 0.2f32), (1.2, -2.0), (0.01, 3.0), (1.5, -0.5)] {
+            let (t2, p2) = spherical_angles(spherical_direction(t, p));
+            assert!((t - t2).abs() < 1e-5 && (p - p2).abs() < 1e-5, "{t},{p} -> {t2},{p2}");
+        }
+        assert_eq!(spherical_angles(Vec3::Z), (0.0, 0.0));
+    }
+
+    #[test]
+    fn reflect_and_mirror_agree() {
+        let w = Vec3::new(0.3, -0.4, 0.866).normalize();
+        assert!((reflect(w, Vec3::Z) - mirror(w)).length() < 1e-6);
+        let h = half_vector(w, mirror(w)).unwrap();
+        assert!((h - Vec3::Z).length() < 1e-6);
+        assert!(half_vector(w, -w).is_none());
+    }
+
+    #[test]
+    fn cos_power_is_accurate_near_one() {
+        let a = DVec3::Z;
+        let t = 1e-3f64;
+        let b = DVec3::new(m::sin(t), 0.0, m::cos(t));
+        let exact = m::pow(m::cos(t), 1e5);
+        assert!((cos_power(a, b, 1e5) - exact).abs() < 1e-9 * exact);
+        assert_eq!(cos_power(a, -a, 0.0), 1.0);
+        assert_eq!(cos_power(a, DVec3::X, 3.0), 0.0);
+    }
+
+    #[test]
+    fn cos_delta_phi_at_the_pole_is_zero() {
+        assert_eq!(cos_delta_phi(Vec3::Z, Vec3::X), 0.0);
+        let a = Vec3::new(1.0, 0.0, 1.0).normalize();
+        assert!((cos_delta_phi(a, mirror(a)) + 1.0).abs() < 1e-6);
+    }
+}

@@ -1,0 +1,2 @@
+//! `viewer`: the live BRDF sampling laboratory (skeleton: a window listing the models).
+fn main() {}
