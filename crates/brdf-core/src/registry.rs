@@ -135,7 +135,7 @@ static MODELS: &[ModelInfo] = &[
         summary: "Cook & Torrance (1982), normalised Beckmann microfacet model with V-cavity G and dielectric Fresnel",
         params: CookTorrance::PARAMS,
         reciprocal: true,
-        energy: Energy::Conserving,
+        energy: Energy::ConservingIf("kd = 0 (the diffuse term is added on top of the specular part, which conserves energy)"),
         analytic_sampler: true,
         delta: false,
         build: |p| boxed(CookTorrance::from_params(p)),
