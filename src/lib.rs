@@ -1,1 +1,28 @@
+//! # brdf-sampling
+//!
+//! Importance sampling of BRDFs with the adaptive quadtree of Montes (2003) over the projected
+//! unit disk, validated statistically. This crate is the facade: it re-exports the workspace's
+//! libraries and ships the `brdf` command-line tool (SPEC §6).
+//!
+//! - [`brdf_core`] (re-exported at the root too): BRDF models, the [`Brdf`] trait, the
+//!   [`registry`], frames, disk maps and analytic warps. `no_std` + `alloc`.
+//! - [`quadtree_sampler`]: the seed's quadtree and its samplers.
+//!
+//! ```
+//! use brdf_sampling::{Brdf, registry};
+//! use brdf_sampling::glam::{Vec2, Vec3};
+//!
+//! let phong = registry::create("phong", ["n=200"]).unwrap();
+//! let wi = Vec3::new(0.6, 0.0, 0.8);
+//! let s = phong.sample(wi, 0.5, Vec2::new(0.3, 0.7)).unwrap();
+//! assert!(s.wo.z > 0.0 && s.pdf > 0.0);
+//! ```
 
+pub use brdf_core;
+pub use brdf_core::*;
+pub use quadtree_sampler;
+
+/// The README's examples, compiled and run as doc tests so that they stay true.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

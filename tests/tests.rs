@@ -1,1 +1,4 @@
+//! The workspace's integration tests, one binary (so they link once).
 
+mod cli;
+mod reference;

@@ -63,10 +63,11 @@ impl Brdf for OrenNayar {
         let (ci, co) = (wi.z.min(1.0), wo.z.min(1.0));
         let (ti, to) = (m::acos(ci), m::acos(co));
         let (alpha, beta) = (ti.max(to), ti.min(to));
-        // tan β and sin α from cosines (no tan of an angle near π/2).
+        // tan β and sin α from cosines (no tan of an angle near π/2); 1 − c² as (1 − c)(1 + c),
+        // which does not cancel for c near 1.
         let (cb, ca) = (ci.max(co), ci.min(co));
-        let tan_beta = m::sqrt((1.0 - cb * cb).max(0.0)) / cb;
-        let sin_alpha = m::sqrt((1.0 - ca * ca).max(0.0));
+        let tan_beta = m::sqrt(((1.0 - cb) * (1.0 + cb)).max(0.0)) / cb;
+        let sin_alpha = m::sqrt(((1.0 - ca) * (1.0 + ca)).max(0.0));
         let cdp = cos_delta_phi64(wi, wo);
         let b2p = 2.0 * beta / PI;
         let c2 = if cdp >= 0.0 {

@@ -1,0 +1,105 @@
+//! `brdf`: the command line of SPEC §6, a stable contract that other tools script against.
+//! Errors go to stderr with exit status 2.
+
+mod eval;
+mod models;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// BRDF models and their importance samplers (Montes 2003 quadtree), from the command line.
+///
+/// Directions are `x,y,z` in the local frame (z = normal, x = tangent), normalised by the
+/// program. Parameters are `--param name=value` with the names of `brdf models`.
+#[derive(Debug, Parser)]
+#[command(name = "brdf", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// List every model with its parameters, defaults and ranges.
+    Models {
+        /// Print JSON (an array of models) instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Evaluate f_r: reads lines `wix wiy wiz wox woy woz` from stdin, prints `r g b` per line
+    /// (1/sr, no cosine). Blank lines are skipped.
+    Eval {
+        #[command(flatten)]
+        model: ModelArgs,
+    },
+}
+
+/// The model and its parameters, shared by every subcommand that needs a BRDF.
+#[derive(Debug, clap::Args)]
+struct ModelArgs {
+    /// Model name (see `brdf models`).
+    #[arg(long)]
+    model: String,
+    /// A parameter as name=value (RGB: one value or r,g,b); repeat for several.
+    #[arg(long = "param", value_name = "NAME=VALUE")]
+    params: Vec<String>,
+}
+
+impl ModelArgs {
+    fn build(&self) -> Result<Box<dyn brdf_sampling::Brdf>, brdf_sampling::ParamError> {
+        brdf_sampling::registry::create(&self.model, self.params.iter().map(String::as_str))
+    }
+}
+
+/// Any failure of a subcommand: printed to stderr, exit status 2.
+#[derive(Debug)]
+enum CliError {
+    Param(brdf_sampling::ParamError),
+    Io(std::io::Error),
+    Input { line: u64, message: String },
+}
+
+impl std::fmt::Display for CliError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Param(e) => write!(f, "{e}"),
+            Self::Io(e) => write!(f, "i/o error: {e}"),
+            Self::Input { line, message } => write!(f, "stdin line {line}: {message}"),
+        }
+    }
+}
+
+impl From<brdf_sampling::ParamError> for CliError {
+    fn from(e: brdf_sampling::ParamError) -> Self {
+        Self::Param(e)
+    }
+}
+
+impl From<std::io::Error> for CliError {
+    fn from(e: std::io::Error) -> Self {
+        Self::Io(e)
+    }
+}
+
+fn run(cli: Cli) -> Result<(), CliError> {
+    let stdout = std::io::stdout().lock();
+    match cli.command {
+        Command::Models { json } => models::run(json, stdout),
+        Command::Eval { model } => {
+            let brdf = model.build()?;
+            eval::run(&*brdf, std::io::stdin().lock(), stdout)
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        // A closed pipe (`brdf eval | head`) is the reader's choice, not an error.
+        Err(CliError::Io(e)) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}

@@ -1,0 +1,182 @@
+//! The `brdf` command line as SPEC §6 fixes it: run the real binary.
+
+use crate::reference;
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+use std::io::Write;
+use std::process::{Command, Output, Stdio};
+
+fn brdf(args: &[&str], stdin: &str) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_brdf"))
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run brdf");
+    child.stdin.take().unwrap().write_all(stdin.as_bytes()).unwrap();
+    child.wait_with_output().unwrap()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8(o.stdout.clone()).unwrap()
+}
+
+#[test]
+fn models_json_lists_every_model_with_parameters() {
+    let o = brdf(&["models", "--json"], "");
+    assert!(o.status.success());
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let models = v.as_array().unwrap();
+    let names: Vec<&str> = models.iter().map(|m| m["name"].as_str().unwrap()).collect();
+    for want in ["lambert", "mirror", "phong", "blinn-phong", "lewis-phong", "cook-torrance", "oren-nayar", "ward", "schlick"] {
+        assert!(names.contains(&want), "{want} missing from {names:?}");
+    }
+    let phong = models.iter().find(|m| m["name"] == "phong").unwrap();
+    let n = phong["params"].as_array().unwrap().iter().find(|p| p["name"] == "n").unwrap();
+    assert_eq!(n["default"], 50.0);
+    assert_eq!(n["min"], 0.0);
+    assert_eq!(n["max"], 100000.0);
+    assert_eq!(n["kind"], "scalar");
+    let ct = models.iter().find(|m| m["name"] == "cook-torrance").unwrap();
+    assert_eq!(ct["params"][1]["default"], serde_json::json!([0.95, 0.64, 0.54]));
+    // The plain listing names every model too.
+    let text = stdout(&brdf(&["models"], ""));
+    for name in names {
+        assert!(text.lines().any(|l| l.starts_with(name)), "{name}");
+    }
+}
+
+/// Parameter sets per model: the defaults and a sharp or unusual setting.
+const SETS: &[(&str, &[&str])] = &[
+    ("lambert", &[]),
+    ("lambert", &["albedo=0.3"]),
+    ("mirror", &[]),
+    ("phong", &[]),
+    ("phong", &["n=10000", "kd=0.05", "ks=0.9"]),
+    ("phong", &["n=0"]),
+    ("blinn-phong", &[]),
+    ("blinn-phong", &["n=3000", "ks=0.8", "kd=0.1"]),
+    ("lewis-phong", &[]),
+    ("lewis-phong", &["n=100000", "kd=0", "ks=1"]),
+    ("cook-torrance", &[]),
+    ("cook-torrance", &["m=0.05", "kd=0.3", "f0=0.04"]),
+    ("cook-torrance", &["m=1", "f0=0.999"]),
+    ("oren-nayar", &[]),
+    ("oren-nayar", &["sigma=1.5", "albedo=0.2"]),
+    ("oren-nayar", &["sigma=0"]),
+    ("ward", &[]),
+    ("ward", &["alpha_x=0.02", "alpha_y=0.4", "kd=0"]),
+    ("schlick", &[]),
+    ("schlick", &["r=0.01", "p=0.05", "c=0.9"]),
+    ("schlick", &["r=1", "p=0.5"]),
+];
+
+/// Random direction pairs, a quarter of each direction grazing (z in [1e-6, 1e-2]), some on
+/// or below the horizon, some exactly mirrored (the lobes' peaks).
+fn directions(rng: &mut Pcg64, count: usize) -> Vec<[f32; 6]> {
+    let dir = |rng: &mut Pcg64| -> [f32; 3] {
+        let phi = rng.random::<f32>() * std::f32::consts::TAU;
+        let z = match rng.random_range(0..8) {
+            0 | 1 => 10f32.powf(rng.random_range(-6.0..-2.0)),
+            2 => 0.0,
+            3 => -rng.random::<f32>(),
+            _ => rng.random::<f32>(),
+        };
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        [r * phi.cos(), r * phi.sin(), z]
+    };
+    (0..count)
+        .map(|k| {
+            let i = dir(rng);
+            let o = if k % 10 == 0 { [-i[0], -i[1], i[2]] } else { dir(rng) };
+            [i[0], i[1], i[2], o[0], o[1], o[2]]
+        })
+        .collect()
+}
+
+#[test]
+fn eval_matches_the_formulas_of_models_md() {
+    let mut rng = Pcg64::seed_from_u64(7);
+    let pairs = directions(&mut rng, 2000);
+    let input: String = pairs.iter().map(|p| format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], p[3], p[4], p[5])).collect();
+    for &(name, params) in SETS {
+        let mut args = vec!["eval", "--model", name];
+        for p in params {
+            args.extend(["--param", p]);
+        }
+        let o = brdf(&args, &input);
+        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
+        let info = serde_json::from_str::<serde_json::Value>(&stdout(&brdf(&["models", "--json"], ""))).unwrap();
+        let specs = info.as_array().unwrap().iter().find(|m| m["name"] == name).unwrap()["params"].clone();
+        let out = stdout(&o);
+        let lines: Vec<&str> = out.lines().collect();
+        assert_eq!(lines.len(), pairs.len());
+        for (p, line) in pairs.iter().zip(lines) {
+            let got: Vec<f64> = line.split(' ').map(|t| t.parse().unwrap()).collect();
+            let d64 = |a: &[f32]| {
+                let v = [f64::from(a[0]), f64::from(a[1]), f64::from(a[2])];
+                let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                [v[0] / l, v[1] / l, v[2] / l]
+            };
+            let (wi, wo) = (d64(&p[..3]), d64(&p[3..]));
+            for (ch, &g) in got.iter().enumerate() {
+                let param = |key: &str| -> f64 {
+                    let given = params.iter().find_map(|a| a.strip_prefix(key).and_then(|r| r.strip_prefix('=')));
+                    match given {
+                        Some(v) => v.parse::<f32>().unwrap().into(),
+                        None => {
+                            let s = specs.as_array().unwrap().iter().find(|s| s["name"] == key).unwrap();
+                            let d = &s["default"];
+                            let v = if d.is_array() { d[ch].as_f64().unwrap() } else { d.as_f64().unwrap() };
+                            f64::from(v as f32)
+                        }
+                    }
+                };
+                let want = reference::eval(name, &param, wi, wo);
+                assert!(
+                    (g - want).abs() <= 1e-5 * want.abs() + 1e-30,
+                    "{name} {params:?} channel {ch} at {line:?} <- {p:?}: brdf eval {g} vs formula {want}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn eval_rejects_bad_input_with_status_2() {
+    for (args, stdin, needle) in [
+        (&["eval", "--model", "phong"][..], "0 0 1 0 0\n", "line 1"),
+        (&["eval", "--model", "phong"], "0 0 1 0 0 1\n0 0 1 x 0 1\n", "line 2"),
+        (&["eval", "--model", "phong"], "0 0 0 0 0 1\n", "zero length"),
+        (&["eval", "--model", "phong"], "NaN 0 1 0 0 1\n", "NaN"),
+        (&["eval", "--model", "phong"], "0 0 1 0 0 1 7\n", "expected 6 numbers"),
+        (&["eval", "--model", "phong", "--param", "n=-1"], "", "`n`"),
+        (&["eval", "--model", "phong", "--param", "kd=0.5,0.5"], "", "`kd`"),
+        (&["eval", "--model", "phong", "--param", "q=1"], "", "no parameter `q`"),
+        (&["eval", "--model", "lewis-phong", "--param", "kd=0.9"], "", "kd + ks"),
+        (&["eval", "--model", "nope"], "", "unknown model"),
+        (&["eval"], "", "--model"),
+    ] {
+        let o = brdf(args, stdin);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?} {stdin:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: stderr {err:?} lacks {needle:?}");
+    }
+}
+
+#[test]
+fn eval_streams_normalises_and_zeroes_below_the_horizon() {
+    let o = brdf(&["eval", "--model", "lambert", "--param", "albedo=0.9,0.6,0.3"], "0 0 1 0 0 1\n\n0 0 5  3 0 4\n0 0 1 0 0 -1\n");
+    assert!(o.status.success());
+    let out = stdout(&o);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 3, "blank lines are skipped: {out}");
+    let got: Vec<f64> = lines[0].split(' ').map(|t| t.parse().unwrap()).collect();
+    for (g, a) in got.iter().zip([0.9f32, 0.6, 0.3]) {
+        let want = f64::from(a) / std::f64::consts::PI;
+        assert!((g - want).abs() < 1e-7 * want, "{g} vs {want}");
+    }
+    assert_eq!(lines[0], lines[1], "directions are normalised");
+    assert_eq!(lines[2], "0.0 0.0 0.0");
+}
