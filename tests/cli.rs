@@ -14,7 +14,12 @@ fn brdf(args: &[&str], stdin: &str) -> Output {
         .stderr(Stdio::piped())
         .spawn()
         .expect("run brdf");
-    child.stdin.take().unwrap().write_all(stdin.as_bytes()).unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(stdin.as_bytes())
+        .unwrap();
     child.wait_with_output().unwrap()
 }
 
@@ -29,17 +34,38 @@ fn models_json_lists_every_model_with_parameters() {
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     let models = v.as_array().unwrap();
     let names: Vec<&str> = models.iter().map(|m| m["name"].as_str().unwrap()).collect();
-    for want in ["lambert", "mirror", "phong", "blinn-phong", "lewis-phong", "cook-torrance", "oren-nayar", "ward", "schlick"] {
+    for want in [
+        "lambert",
+        "mirror",
+        "phong",
+        "blinn-phong",
+        "lewis-phong",
+        "cook-torrance",
+        "oren-nayar",
+        "ward",
+        "schlick",
+    ] {
         assert!(names.contains(&want), "{want} missing from {names:?}");
     }
     let phong = models.iter().find(|m| m["name"] == "phong").unwrap();
-    let n = phong["params"].as_array().unwrap().iter().find(|p| p["name"] == "n").unwrap();
+    let n = phong["params"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == "n")
+        .unwrap();
     assert_eq!(n["default"], 50.0);
     assert_eq!(n["min"], 0.0);
     assert_eq!(n["max"], 100000.0);
     assert_eq!(n["kind"], "scalar");
-    let ct = models.iter().find(|m| m["name"] == "cook-torrance").unwrap();
-    assert_eq!(ct["params"][1]["default"], serde_json::json!([0.95, 0.64, 0.54]));
+    let ct = models
+        .iter()
+        .find(|m| m["name"] == "cook-torrance")
+        .unwrap();
+    assert_eq!(
+        ct["params"][1]["default"],
+        serde_json::json!([0.95, 0.64, 0.54])
+    );
     // The plain listing names every model too.
     let text = stdout(&brdf(&["models"], ""));
     for name in names {
@@ -89,7 +115,11 @@ fn directions(rng: &mut Pcg64, count: usize) -> Vec<[f32; 6]> {
     (0..count)
         .map(|k| {
             let i = dir(rng);
-            let o = if k % 10 == 0 { [-i[0], -i[1], i[2]] } else { dir(rng) };
+            let o = if k % 10 == 0 {
+                [-i[0], -i[1], i[2]]
+            } else {
+                dir(rng)
+            };
             [i[0], i[1], i[2], o[0], o[1], o[2]]
         })
         .collect()
@@ -99,16 +129,31 @@ fn directions(rng: &mut Pcg64, count: usize) -> Vec<[f32; 6]> {
 fn eval_matches_the_formulas_of_models_md() {
     let mut rng = Pcg64::seed_from_u64(7);
     let pairs = directions(&mut rng, 2000);
-    let input: String = pairs.iter().map(|p| format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], p[3], p[4], p[5])).collect();
+    let input: String = pairs
+        .iter()
+        .map(|p| format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], p[3], p[4], p[5]))
+        .collect();
     for &(name, params) in SETS {
         let mut args = vec!["eval", "--model", name];
         for p in params {
             args.extend(["--param", p]);
         }
         let o = brdf(&args, &input);
-        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
-        let info = serde_json::from_str::<serde_json::Value>(&stdout(&brdf(&["models", "--json"], ""))).unwrap();
-        let specs = info.as_array().unwrap().iter().find(|m| m["name"] == name).unwrap()["params"].clone();
+        assert!(
+            o.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let info =
+            serde_json::from_str::<serde_json::Value>(&stdout(&brdf(&["models", "--json"], "")))
+                .unwrap();
+        let specs = info
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|m| m["name"] == name)
+            .unwrap()["params"]
+            .clone();
         let out = stdout(&o);
         let lines: Vec<&str> = out.lines().collect();
         assert_eq!(lines.len(), pairs.len());
@@ -122,13 +167,24 @@ fn eval_matches_the_formulas_of_models_md() {
             let (wi, wo) = (d64(&p[..3]), d64(&p[3..]));
             for (ch, &g) in got.iter().enumerate() {
                 let param = |key: &str| -> f64 {
-                    let given = params.iter().find_map(|a| a.strip_prefix(key).and_then(|r| r.strip_prefix('=')));
+                    let given = params
+                        .iter()
+                        .find_map(|a| a.strip_prefix(key).and_then(|r| r.strip_prefix('=')));
                     match given {
                         Some(v) => v.parse::<f32>().unwrap().into(),
                         None => {
-                            let s = specs.as_array().unwrap().iter().find(|s| s["name"] == key).unwrap();
+                            let s = specs
+                                .as_array()
+                                .unwrap()
+                                .iter()
+                                .find(|s| s["name"] == key)
+                                .unwrap();
                             let d = &s["default"];
-                            let v = if d.is_array() { d[ch].as_f64().unwrap() } else { d.as_f64().unwrap() };
+                            let v = if d.is_array() {
+                                d[ch].as_f64().unwrap()
+                            } else {
+                                d.as_f64().unwrap()
+                            };
                             f64::from(v as f32)
                         }
                     }
@@ -147,27 +203,63 @@ fn eval_matches_the_formulas_of_models_md() {
 fn eval_rejects_bad_input_with_status_2() {
     for (args, stdin, needle) in [
         (&["eval", "--model", "phong"][..], "0 0 1 0 0\n", "line 1"),
-        (&["eval", "--model", "phong"], "0 0 1 0 0 1\n0 0 1 x 0 1\n", "line 2"),
-        (&["eval", "--model", "phong"], "0 0 0 0 0 1\n", "zero length"),
+        (
+            &["eval", "--model", "phong"],
+            "0 0 1 0 0 1\n0 0 1 x 0 1\n",
+            "line 2",
+        ),
+        (
+            &["eval", "--model", "phong"],
+            "0 0 0 0 0 1\n",
+            "zero length",
+        ),
         (&["eval", "--model", "phong"], "NaN 0 1 0 0 1\n", "NaN"),
-        (&["eval", "--model", "phong"], "0 0 1 0 0 1 7\n", "expected 6 numbers"),
+        (
+            &["eval", "--model", "phong"],
+            "0 0 1 0 0 1 7\n",
+            "expected 6 numbers",
+        ),
         (&["eval", "--model", "phong", "--param", "n=-1"], "", "`n`"),
-        (&["eval", "--model", "phong", "--param", "kd=0.5,0.5"], "", "`kd`"),
-        (&["eval", "--model", "phong", "--param", "q=1"], "", "no parameter `q`"),
-        (&["eval", "--model", "lewis-phong", "--param", "kd=0.9"], "", "kd + ks"),
+        (
+            &["eval", "--model", "phong", "--param", "kd=0.5,0.5"],
+            "",
+            "`kd`",
+        ),
+        (
+            &["eval", "--model", "phong", "--param", "q=1"],
+            "",
+            "no parameter `q`",
+        ),
+        (
+            &["eval", "--model", "lewis-phong", "--param", "kd=0.9"],
+            "",
+            "kd + ks",
+        ),
         (&["eval", "--model", "nope"], "", "unknown model"),
         (&["eval"], "", "--model"),
     ] {
         let o = brdf(args, stdin);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{args:?} {stdin:?}: {err}");
-        assert!(err.contains(needle), "{args:?}: stderr {err:?} lacks {needle:?}");
+        assert!(
+            err.contains(needle),
+            "{args:?}: stderr {err:?} lacks {needle:?}"
+        );
     }
 }
 
 #[test]
 fn eval_streams_normalises_and_zeroes_below_the_horizon() {
-    let o = brdf(&["eval", "--model", "lambert", "--param", "albedo=0.9,0.6,0.3"], "0 0 1 0 0 1\n\n0 0 5  3 0 4\n0 0 1 0 0 -1\n");
+    let o = brdf(
+        &[
+            "eval",
+            "--model",
+            "lambert",
+            "--param",
+            "albedo=0.9,0.6,0.3",
+        ],
+        "0 0 1 0 0 1\n\n0 0 5  3 0 4\n0 0 1 0 0 -1\n",
+    );
     assert!(o.status.success());
     let out = stdout(&o);
     let lines: Vec<&str> = out.lines().collect();

@@ -24,7 +24,11 @@ fn cos_alpha(wi: V, wo: V) -> f64 {
 
 fn cos_dphi(wi: V, wo: V) -> f64 {
     let (li, lo) = (wi[0].hypot(wi[1]), wo[0].hypot(wo[1]));
-    if li == 0.0 || lo == 0.0 { 0.0 } else { (wi[0] * wo[0] + wi[1] * wo[1]) / (li * lo) }
+    if li == 0.0 || lo == 0.0 {
+        0.0
+    } else {
+        (wi[0] * wo[0] + wi[1] * wo[1]) / (li * lo)
+    }
 }
 
 /// pow with pow(0, 0) = 1.
@@ -61,7 +65,9 @@ pub fn eval(name: &str, p: &dyn Fn(&str) -> f64, wi: V, wo: V) -> f64 {
             let g = 1f64.min(2.0 * c * co / u).min(2.0 * c * ci / u);
             let eta = (1.0 + f0.sqrt()) / (1.0 - f0.sqrt());
             let gg = (eta * eta + u * u - 1.0).sqrt();
-            let f = 0.5 * ((gg - u) / (gg + u)).powi(2) * (1.0 + ((u * (gg + u) - 1.0) / (u * (gg - u) + 1.0)).powi(2));
+            let f = 0.5
+                * ((gg - u) / (gg + u)).powi(2)
+                * (1.0 + ((u * (gg + u) - 1.0) / (u * (gg - u) + 1.0)).powi(2));
             p("kd") / PI + f * d * g / (4.0 * ci * co)
         }
         "oren-nayar" => {
@@ -77,7 +83,8 @@ pub fn eval(name: &str, p: &dyn Fn(&str) -> f64, wi: V, wo: V) -> f64 {
                 0.45 * s2 / (s2 + 0.09) * (a.sin() - (2.0 * b / PI).powi(3))
             };
             let c3 = 0.125 * s2 / (s2 + 0.09) * (4.0 * a * b / (PI * PI)).powi(2);
-            let f = rho / PI * (c1 + cd * c2 * b.tan() + (1.0 - cd.abs()) * c3 * ((a + b) / 2.0).tan())
+            let f = rho / PI
+                * (c1 + cd * c2 * b.tan() + (1.0 - cd.abs()) * c3 * ((a + b) / 2.0).tan())
                 + 0.17 * rho * rho / PI * s2 / (s2 + 0.13) * (1.0 - cd * (2.0 * b / PI).powi(2));
             f.max(0.0)
         }

@@ -1,7 +1,7 @@
 //! The [`Brdf`] trait every model implements, and what its samplers return.
 
 use crate::error::DirectionError;
-use crate::geometry::{luminance, mirror, unit_direction, unit_direction_above};
+use crate::geometry::{above_horizon, luminance, mirror, unit_direction, unit_direction_above};
 use crate::param::ParamSet;
 use crate::warp::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
 use core::fmt;
@@ -33,7 +33,13 @@ impl BrdfSample {
         if !(wo.z > 0.0 && pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
-        Some(Self { wo, pdf, f, weight: f * (wo.z / pdf), delta: false })
+        Some(Self {
+            wo,
+            pdf,
+            f,
+            weight: f * (wo.z / pdf),
+            delta: false,
+        })
     }
 
     /// Builds the delta sample toward `wo` with the given reflectance, chosen with probability
@@ -67,7 +73,10 @@ impl PeakHints {
     /// No hints.
     #[must_use]
     pub const fn new() -> Self {
-        Self { dirs: [Vec3::ZERO; 4], len: 0 }
+        Self {
+            dirs: [Vec3::ZERO; 4],
+            len: 0,
+        }
     }
 
     /// Adds a hint if it is a finite direction strictly above the horizon and there is room.
@@ -149,7 +158,7 @@ pub trait Brdf: Send + Sync + fmt::Debug {
     /// The default is cosine-weighted sampling.
     fn sample(&self, wi: Vec3, uc: f32, u: Vec2) -> Option<BrdfSample> {
         let _ = uc;
-        if !(wi.z > 0.0) {
+        if !above_horizon(wi) {
             return None;
         }
         let wo = sample_cosine_hemisphere(u);
@@ -159,7 +168,7 @@ pub trait Brdf: Send + Sync + fmt::Debug {
     /// The density with which [`Brdf::sample`] draws `wo` given `wi`, **per unit solid angle**
     /// (continuous part only: 0 for a pure delta model). Agrees with the `pdf` of the samples.
     fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
-        if !(wi.z > 0.0) {
+        if !above_horizon(wi) {
             return 0.0;
         }
         cosine_hemisphere_pdf(wo.z)

@@ -21,7 +21,9 @@ impl fmt::Display for DirectionError {
         f.write_str(match self {
             Self::NotFinite => "direction has a NaN or infinite component",
             Self::ZeroLength => "direction has zero length",
-            Self::BelowHorizon => "direction is at or below the horizon (z <= 0 in the local frame)",
+            Self::BelowHorizon => {
+                "direction is at or below the horizon (z <= 0 in the local frame)"
+            }
             Self::ParallelTangent => "tangent is parallel to the normal",
         })
     }
@@ -81,10 +83,9 @@ pub enum ParamError {
 impl fmt::Display for ParamError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Self::UnknownModel { name } => write!(
-                f,
-                "unknown model `{name}` (run `brdf models` for the list)"
-            ),
+            Self::UnknownModel { name } => {
+                write!(f, "unknown model `{name}` (run `brdf models` for the list)")
+            }
             Self::UnknownParam { model, name, known } => write!(
                 f,
                 "model `{model}` has no parameter `{name}` (it has: {known})"

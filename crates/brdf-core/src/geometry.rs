@@ -47,6 +47,14 @@ pub fn unit_direction_above(v: Vec3) -> Result<Vec3, DirectionError> {
     }
 }
 
+/// True when `w` is finite and strictly above the horizon (z > 0); false for NaN, which a
+/// plain `w.z > 0.0` test would also give, but this says why.
+#[inline]
+#[must_use]
+pub fn above_horizon(w: Vec3) -> bool {
+    w.z > 0.0 && w.is_finite()
+}
+
 /// The local-frame mirror direction r(w) = (−x, −y, z): reflection of `w` about the normal.
 #[inline]
 #[must_use]
@@ -122,7 +130,7 @@ pub(crate) fn cos_delta_phi64(wi: DVec3, wo: DVec3) -> f64 {
 #[inline]
 #[must_use]
 pub(crate) fn upper_pair(wi: Vec3, wo: Vec3) -> Option<(DVec3, DVec3)> {
-    if !(wi.z > 0.0 && wo.z > 0.0 && wi.is_finite() && wo.is_finite()) {
+    if !(above_horizon(wi) && above_horizon(wo)) {
         return None;
     }
     let (wi, wo) = (wi.as_dvec3(), wo.as_dvec3());
@@ -170,7 +178,10 @@ mod tests {
     fn spherical_round_trip() {
         for &(t, p) in &[(0.3f32, 0.2f32), (1.2, -2.0), (0.01, 3.0), (1.5, -0.5)] {
             let (t2, p2) = spherical_angles(spherical_direction(t, p));
-            assert!((t - t2).abs() < 1e-5 && (p - p2).abs() < 1e-5, "{t},{p} -> {t2},{p2}");
+            assert!(
+                (t - t2).abs() < 1e-5 && (p - p2).abs() < 1e-5,
+                "{t},{p} -> {t2},{p2}"
+            );
         }
         assert_eq!(spherical_angles(Vec3::Z), (0.0, 0.0));
     }

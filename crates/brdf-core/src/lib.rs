@@ -46,6 +46,6 @@ pub mod warp;
 pub use brdf::{Brdf, BrdfSample, PeakHints};
 pub use error::{DirectionError, ParamError};
 pub use frame::Frame;
+pub use glam;
 pub use maps::DiskMap;
 pub use param::{ParamKind, ParamSet, ParamSpec, ParamValue};
-pub use glam;

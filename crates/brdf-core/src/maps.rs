@@ -170,12 +170,19 @@ mod tests {
     fn concentric_jacobian_is_pi_over_4() {
         // Finite-difference area of a small square at several points.
         let h = 1e-3f32;
-        for p in [Vec2::new(0.3, 0.1), Vec2::new(-0.7, 0.5), Vec2::new(0.2, -0.9)] {
+        for p in [
+            Vec2::new(0.3, 0.1),
+            Vec2::new(-0.7, 0.5),
+            Vec2::new(0.2, -0.9),
+        ] {
             let a = square_to_disk_concentric(p);
             let du = square_to_disk_concentric(p + Vec2::X * h) - a;
             let dv = square_to_disk_concentric(p + Vec2::Y * h) - a;
             let area = du.perp_dot(dv) / (h * h);
-            assert!((area - CONCENTRIC_DISK_AREA_PER_SQUARE_AREA).abs() < 2e-3, "{area}");
+            assert!(
+                (area - CONCENTRIC_DISK_AREA_PER_SQUARE_AREA).abs() < 2e-3,
+                "{area}"
+            );
         }
     }
 
@@ -201,7 +208,13 @@ mod tests {
     fn jacobians_integrate_the_projected_hemisphere() {
         // ∫ cosθ dω over the hemisphere = π; the square's usable area / J must equal it.
         let ortho_usable = PI; // the unit disk
-        assert!((ortho_usable / DiskMap::Orthographic.square_area_per_projected_solid_angle() - PI).abs() < 1e-6);
-        assert!((4.0 / DiskMap::Concentric.square_area_per_projected_solid_angle() - PI).abs() < 1e-6);
+        assert!(
+            (ortho_usable / DiskMap::Orthographic.square_area_per_projected_solid_angle() - PI)
+                .abs()
+                < 1e-6
+        );
+        assert!(
+            (4.0 / DiskMap::Concentric.square_area_per_projected_solid_angle() - PI).abs() < 1e-6
+        );
     }
 }

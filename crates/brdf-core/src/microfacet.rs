@@ -83,7 +83,9 @@ impl WardLobe {
         }
         let c2 = h.z * h.z;
         // tan²θ cos²φ = hx²/hz², tan²θ sin²φ = hy²/hz².
-        let e = (h.x * h.x / (self.alpha_x * self.alpha_x) + h.y * h.y / (self.alpha_y * self.alpha_y)) / c2;
+        let e = (h.x * h.x / (self.alpha_x * self.alpha_x)
+            + h.y * h.y / (self.alpha_y * self.alpha_y))
+            / c2;
         m::exp(-e) * FRAC_1_PI / (self.alpha_x * self.alpha_y * c2 * h.z)
     }
 }
@@ -133,7 +135,6 @@ impl Ggx {
 mod tests {
     use super::*;
     use crate::quadrature::hemisphere_integral;
-    use glam::Vec3;
 
     fn integral(f: &dyn Fn(DVec3) -> f64) -> f64 {
         hemisphere_integral(96, 6, |w| f(w.as_dvec3()))
@@ -143,11 +144,20 @@ mod tests {
     fn half_vector_pdfs_are_normalised() {
         for m in [0.05, 0.2, 0.7] {
             let b = Beckmann { m };
-            assert!((integral(&|h| b.pdf_h(h)) - 1.0).abs() < 1e-4, "beckmann {m}");
+            assert!(
+                (integral(&|h| b.pdf_h(h)) - 1.0).abs() < 1e-4,
+                "beckmann {m}"
+            );
         }
         for (ax, ay) in [(0.1, 0.3), (0.05, 0.2), (0.5, 0.5)] {
-            let w = WardLobe { alpha_x: ax, alpha_y: ay };
-            assert!((integral(&|h| w.pdf_h(h)) - 1.0).abs() < 1e-4, "ward {ax} {ay}");
+            let w = WardLobe {
+                alpha_x: ax,
+                alpha_y: ay,
+            };
+            assert!(
+                (integral(&|h| w.pdf_h(h)) - 1.0).abs() < 1e-4,
+                "ward {ax} {ay}"
+            );
         }
         for a2 in [0.01, 0.3, 1.0] {
             let g = Ggx { alpha2: a2 };
@@ -170,7 +180,10 @@ mod tests {
             a / f64::from(n * n)
         };
         let b = Beckmann { m: 0.3 };
-        let w = WardLobe { alpha_x: 0.1, alpha_y: 0.4 };
+        let w = WardLobe {
+            alpha_x: 0.1,
+            alpha_y: 0.4,
+        };
         let g = Ggx { alpha2: 0.2 };
         assert!((mean(&|u| b.sample_h(u)) - integral(&|h| h.z * b.pdf_h(h))).abs() < 1e-3);
         assert!((mean(&|u| w.sample_h(u)) - integral(&|h| h.z * w.pdf_h(h))).abs() < 1e-3);

@@ -38,14 +38,42 @@ pub struct ParamSpec {
 impl ParamSpec {
     /// A scalar parameter with the closed range [min, max].
     #[must_use]
-    pub const fn scalar(name: &'static str, default: f32, min: f32, max: f32, doc: &'static str) -> Self {
-        Self { name, kind: ParamKind::Scalar, default: [default; 3], min, max, min_exclusive: false, doc }
+    pub const fn scalar(
+        name: &'static str,
+        default: f32,
+        min: f32,
+        max: f32,
+        doc: &'static str,
+    ) -> Self {
+        Self {
+            name,
+            kind: ParamKind::Scalar,
+            default: [default; 3],
+            min,
+            max,
+            min_exclusive: false,
+            doc,
+        }
     }
 
     /// An RGB parameter with the closed range [min, max] per channel.
     #[must_use]
-    pub const fn rgb(name: &'static str, default: [f32; 3], min: f32, max: f32, doc: &'static str) -> Self {
-        Self { name, kind: ParamKind::Rgb, default, min, max, min_exclusive: false, doc }
+    pub const fn rgb(
+        name: &'static str,
+        default: [f32; 3],
+        min: f32,
+        max: f32,
+        doc: &'static str,
+    ) -> Self {
+        Self {
+            name,
+            kind: ParamKind::Rgb,
+            default,
+            min,
+            max,
+            min_exclusive: false,
+            doc,
+        }
     }
 
     /// The same parameter with its lower end excluded: (min, max].
@@ -78,7 +106,11 @@ impl ParamSpec {
     /// Whether `v` lies in the range (NaN never does).
     #[must_use]
     pub fn contains(&self, v: f32) -> bool {
-        let lo = if self.min_exclusive { v > self.min } else { v >= self.min };
+        let lo = if self.min_exclusive {
+            v > self.min
+        } else {
+            v >= self.min
+        };
         lo && v <= self.max
     }
 
@@ -87,7 +119,11 @@ impl ParamSpec {
         if self.contains(v) {
             Ok(v)
         } else {
-            Err(ParamError::OutOfRange { name: self.name, value: v, range: self.range_text() })
+            Err(ParamError::OutOfRange {
+                name: self.name,
+                value: v,
+                range: self.range_text(),
+            })
         }
     }
 
@@ -102,9 +138,13 @@ impl ParamSpec {
     /// Checks a value of either kind against this spec (kind and range).
     pub fn check(&self, v: ParamValue) -> Result<ParamValue, ParamError> {
         match (self.kind, v) {
-            (ParamKind::Scalar, ParamValue::Scalar(x)) => self.check_scalar(x).map(ParamValue::Scalar),
+            (ParamKind::Scalar, ParamValue::Scalar(x)) => {
+                self.check_scalar(x).map(ParamValue::Scalar)
+            }
             (ParamKind::Rgb, ParamValue::Rgb(c)) => self.check_rgb(c).map(ParamValue::Rgb),
-            (ParamKind::Rgb, ParamValue::Scalar(x)) => self.check_rgb(Vec3::splat(x)).map(ParamValue::Rgb),
+            (ParamKind::Rgb, ParamValue::Scalar(x)) => {
+                self.check_rgb(Vec3::splat(x)).map(ParamValue::Rgb)
+            }
             (ParamKind::Scalar, ParamValue::Rgb(c)) => Err(ParamError::BadValue {
                 name: self.name,
                 text: format!("{},{},{}", c.x, c.y, c.z),
@@ -115,7 +155,11 @@ impl ParamSpec {
 
     /// Parses the text after `=`: one number, or for RGB one or three comma-separated numbers.
     pub fn parse(&self, text: &str) -> Result<ParamValue, ParamError> {
-        let bad = |expected| ParamError::BadValue { name: self.name, text: text.to_string(), expected };
+        let bad = |expected| ParamError::BadValue {
+            name: self.name,
+            text: text.to_string(),
+            expected,
+        };
         let nums: Result<Vec<f32>, _> = text.split(',').map(|s| s.trim().parse::<f32>()).collect();
         let nums = nums.map_err(|_| {
             bad(match self.kind {
@@ -185,7 +229,11 @@ impl ParamSet {
     /// Every parameter at its default.
     #[must_use]
     pub fn defaults(model: &'static str, specs: &'static [ParamSpec]) -> Self {
-        Self { model, specs, values: specs.iter().map(ParamSpec::default_value).collect() }
+        Self {
+            model,
+            specs,
+            values: specs.iter().map(ParamSpec::default_value).collect(),
+        }
     }
 
     /// The model these values are for.
@@ -206,11 +254,19 @@ impl ParamSet {
     }
 
     fn index(&self, name: &str) -> Result<usize, ParamError> {
-        self.specs.iter().position(|s| s.name == name).ok_or_else(|| ParamError::UnknownParam {
-            model: self.model,
-            name: name.to_string(),
-            known: self.specs.iter().map(|s| s.name).collect::<Vec<_>>().join(", "),
-        })
+        self.specs
+            .iter()
+            .position(|s| s.name == name)
+            .ok_or_else(|| ParamError::UnknownParam {
+                model: self.model,
+                name: name.to_string(),
+                known: self
+                    .specs
+                    .iter()
+                    .map(|s| s.name)
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })
     }
 
     /// The value of `name`.
@@ -227,9 +283,9 @@ impl ParamSet {
 
     /// Applies one `name=value` assignment as written on the command line.
     pub fn assign(&mut self, text: &str) -> Result<(), ParamError> {
-        let (name, value) = text
-            .split_once('=')
-            .ok_or_else(|| ParamError::Malformed { text: text.to_string() })?;
+        let (name, value) = text.split_once('=').ok_or_else(|| ParamError::Malformed {
+            text: text.to_string(),
+        })?;
         let i = self.index(name.trim())?;
         self.values[i] = self.specs[i].parse(value)?;
         Ok(())
@@ -243,6 +299,22 @@ impl ParamSet {
     /// The RGB value of `name`; for use by model constructors (the name must exist).
     pub fn rgb(&self, name: &str) -> Result<Vec3, ParamError> {
         self.get(name).map(ParamValue::rgb)
+    }
+}
+
+impl ParamSet {
+    /// A set from values already checked by a model constructor (crate-internal).
+    pub(crate) fn from_checked(
+        model: &'static str,
+        specs: &'static [ParamSpec],
+        values: &[ParamValue],
+    ) -> Self {
+        debug_assert_eq!(specs.len(), values.len());
+        Self {
+            model,
+            specs,
+            values: values.to_vec(),
+        }
     }
 }
 
@@ -269,9 +341,18 @@ mod tests {
         let e = p.assign("n=1e6").unwrap_err();
         assert!(matches!(e, ParamError::OutOfRange { name: "n", .. }));
         assert!(e.to_string().contains("[0, 100000]"), "{e}");
-        assert!(matches!(p.assign("n=NaN"), Err(ParamError::OutOfRange { .. })));
-        assert!(matches!(p.assign("n=1,2,3"), Err(ParamError::BadValue { .. })));
-        assert!(matches!(p.assign("kd=1,2"), Err(ParamError::BadValue { .. })));
+        assert!(matches!(
+            p.assign("n=NaN"),
+            Err(ParamError::OutOfRange { .. })
+        ));
+        assert!(matches!(
+            p.assign("n=1,2,3"),
+            Err(ParamError::BadValue { .. })
+        ));
+        assert!(matches!(
+            p.assign("kd=1,2"),
+            Err(ParamError::BadValue { .. })
+        ));
         assert!(matches!(p.assign("kd=x"), Err(ParamError::BadValue { .. })));
         assert!(matches!(p.assign("kd"), Err(ParamError::Malformed { .. })));
         let e = p.assign("q=1").unwrap_err();
@@ -281,13 +362,5 @@ mod tests {
         p.assign("h=1e-3").unwrap();
         // A failed assignment leaves the previous value.
         assert_eq!(p.scalar("n").unwrap(), 7.0);
-    }
-}
-
-impl ParamSet {
-    /// A set from values already checked by a model constructor (crate-internal).
-    pub(crate) fn from_checked(model: &'static str, specs: &'static [ParamSpec], values: &[ParamValue]) -> Self {
-        debug_assert_eq!(specs.len(), values.len());
-        Self { model, specs, values: values.to_vec() }
     }
 }

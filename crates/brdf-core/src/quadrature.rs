@@ -115,8 +115,15 @@ where
 
 /// The directional albedo ρ(wi) = ∫ f_r(wi, wo) cos θo dωo of a BRDF's continuous part, RGB,
 /// by [`hemisphere_integral`] (see there for `panels` and `order`).
-pub fn directional_albedo<B: Brdf + ?Sized>(brdf: &B, wi: Vec3, panels: usize, order: usize) -> DVec3 {
-    hemisphere_integral(panels, order, |wo| brdf.eval(wi, wo).as_dvec3() * f64::from(wo.z))
+pub fn directional_albedo<B: Brdf + ?Sized>(
+    brdf: &B,
+    wi: Vec3,
+    panels: usize,
+    order: usize,
+) -> DVec3 {
+    hemisphere_integral(panels, order, |wo| {
+        brdf.eval(wi, wo).as_dvec3() * f64::from(wo.z)
+    })
 }
 
 #[cfg(test)]
@@ -129,7 +136,13 @@ mod tests {
             let r = GaussLegendre::new(n);
             assert!((r.weights().iter().sum::<f64>() - 2.0).abs() < 1e-13);
             let deg = 2 * n - 1;
-            let exact = |k: usize| if k % 2 == 1 { 0.0 } else { 2.0 / (k as f64 + 1.0) };
+            let exact = |k: usize| {
+                if k % 2 == 1 {
+                    0.0
+                } else {
+                    2.0 / (k as f64 + 1.0)
+                }
+            };
             for k in 0..=deg {
                 let got = r.integrate(-1.0, 1.0, |x| x.powi(k as i32));
                 assert!((got - exact(k)).abs() < 1e-12, "n={n} k={k}: {got}");

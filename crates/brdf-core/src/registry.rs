@@ -10,7 +10,9 @@
 
 use crate::brdf::Brdf;
 use crate::error::ParamError;
-use crate::models::{BlinnPhong, CookTorrance, Lambert, LewisPhong, Mirror, OrenNayar, Phong, Schlick, Ward};
+use crate::models::{
+    BlinnPhong, CookTorrance, Lambert, LewisPhong, Mirror, OrenNayar, Phong, Schlick, Ward,
+};
 use crate::param::{ParamSet, ParamSpec};
 use alloc::boxed::Box;
 use alloc::string::ToString;
@@ -54,7 +56,10 @@ impl ModelInfo {
     }
 
     /// The defaults with `name=value` assignments applied in order.
-    pub fn parse_params<'a>(&self, assignments: impl IntoIterator<Item = &'a str>) -> Result<ParamSet, ParamError> {
+    pub fn parse_params<'a>(
+        &self,
+        assignments: impl IntoIterator<Item = &'a str>,
+    ) -> Result<ParamSet, ParamError> {
         let mut p = self.defaults();
         for a in assignments {
             p.assign(a)?;
@@ -135,7 +140,9 @@ static MODELS: &[ModelInfo] = &[
         summary: "Cook & Torrance (1982), normalised Beckmann microfacet model with V-cavity G and dielectric Fresnel",
         params: CookTorrance::PARAMS,
         reciprocal: true,
-        energy: Energy::ConservingIf("kd = 0 (the diffuse term is added on top of the specular part, which conserves energy)"),
+        energy: Energy::ConservingIf(
+            "kd = 0 (the diffuse term is added on top of the specular part, which conserves energy)",
+        ),
         analytic_sampler: true,
         delta: false,
         build: |p| boxed(CookTorrance::from_params(p)),
@@ -183,11 +190,16 @@ pub fn find(name: &str) -> Result<&'static ModelInfo, ParamError> {
     MODELS
         .iter()
         .find(|m| m.name == name)
-        .ok_or_else(|| ParamError::UnknownModel { name: name.to_string() })
+        .ok_or_else(|| ParamError::UnknownModel {
+            name: name.to_string(),
+        })
 }
 
 /// Builds model `name` from `name=value` assignments (defaults for the rest).
-pub fn create<'a>(name: &str, assignments: impl IntoIterator<Item = &'a str>) -> Result<Box<dyn Brdf>, ParamError> {
+pub fn create<'a>(
+    name: &str,
+    assignments: impl IntoIterator<Item = &'a str>,
+) -> Result<Box<dyn Brdf>, ParamError> {
     let info = find(name)?;
     info.build(&info.parse_params(assignments)?)
 }

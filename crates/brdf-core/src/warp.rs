@@ -118,7 +118,9 @@ mod tests {
     use crate::quadrature::hemisphere_integral;
 
     fn uniforms() -> impl Iterator<Item = Vec2> {
-        (0..23).flat_map(|i| (0..19).map(move |j| Vec2::new((i as f32 + 0.5) / 23.0, (j as f32 + 0.37) / 19.0)))
+        (0..23).flat_map(|i| {
+            (0..19).map(move |j| Vec2::new((i as f32 + 0.5) / 23.0, (j as f32 + 0.37) / 19.0))
+        })
     }
 
     #[test]
@@ -139,7 +141,7 @@ mod tests {
 
     #[test]
     fn pdfs_integrate_to_one() {
-        let one = |f: &dyn Fn(Vec3) -> f64| hemisphere_integral(64, 6, |w| f(w));
+        let one = |f: &dyn Fn(Vec3) -> f64| hemisphere_integral(64, 6, f);
         assert!((one(&|_| f64::from(uniform_hemisphere_pdf())) - 1.0).abs() < 1e-6);
         assert!((one(&|w| f64::from(cosine_hemisphere_pdf(w.z))) - 1.0).abs() < 1e-6);
         for n in [0.0f32, 1.0, 20.0, 1000.0] {
@@ -159,6 +161,10 @@ mod tests {
             acc += 1.0 - w.z;
         }
         let mean = acc / f64::from(k);
-        assert!((mean * (n + 2.0) - 1.0).abs() < 0.02, "{}", mean * (n + 2.0));
+        assert!(
+            (mean * (n + 2.0) - 1.0).abs() < 0.02,
+            "{}",
+            mean * (n + 2.0)
+        );
     }
 }

@@ -8,7 +8,11 @@ use std::io::{BufRead, BufWriter, Write};
 /// Reads `wix wiy wiz wox woy woz` lines, writes `r g b` lines. Directions are normalised;
 /// one below the horizon gives `0 0 0`; a malformed line, a NaN or a zero vector is an error
 /// naming the line.
-pub(crate) fn run(brdf: &dyn Brdf, mut input: impl BufRead, out: impl Write) -> Result<(), CliError> {
+pub(crate) fn run(
+    brdf: &dyn Brdf,
+    mut input: impl BufRead,
+    out: impl Write,
+) -> Result<(), CliError> {
     let mut out = BufWriter::with_capacity(1 << 16, out);
     let mut line = String::new();
     let mut fmt = ryu::Buffer::new();
@@ -38,7 +42,10 @@ pub(crate) fn run(brdf: &dyn Brdf, mut input: impl BufRead, out: impl Write) -> 
             _ => {
                 return Err(CliError::Input {
                     line: lineno,
-                    message: format!("expected 6 numbers `wix wiy wiz wox woy woz`, got `{}`", line.trim_end()),
+                    message: format!(
+                        "expected 6 numbers `wix wiy wiz wox woy woz`, got `{}`",
+                        line.trim_end()
+                    ),
                 });
             }
         }
@@ -46,9 +53,10 @@ pub(crate) fn run(brdf: &dyn Brdf, mut input: impl BufRead, out: impl Write) -> 
         // rounding a normalised copy to f32 first would move deep lobe tails by ~1e-5.
         let dir = |i: usize, name: &str| {
             let v = Vec3::new(nums[i], nums[i + 1], nums[i + 2]);
-            unit_direction(v)
-                .map(|_| v)
-                .map_err(|e| CliError::Input { line: lineno, message: format!("{name}: {e}") })
+            unit_direction(v).map(|_| v).map_err(|e| CliError::Input {
+                line: lineno,
+                message: format!("{name}: {e}"),
+            })
         };
         let f = brdf.eval(dir(0, "wi")?, dir(3, "wo")?);
         for (k, c) in f.to_array().into_iter().enumerate() {

@@ -8,7 +8,10 @@ use std::io::Write;
 
 /// An f32 as the JSON number with its shortest decimal form (0.8, not 0.800000011920929).
 fn num(v: f32) -> Value {
-    let shortest: f64 = v.to_string().parse().expect("an f32's Display form parses as f64");
+    let shortest: f64 = v
+        .to_string()
+        .parse()
+        .expect("an f32's Display form parses as f64");
     json!(shortest)
 }
 
@@ -61,7 +64,14 @@ pub(crate) fn run(json: bool, mut out: impl Write) -> Result<(), CliError> {
                 ParamKind::Scalar => "",
                 ParamKind::Rgb => " (rgb)",
             };
-            writeln!(out, "    {:<13} default {:<18} range {:<15} {}{kind}", s.name, default, s.range_text(), s.doc)?;
+            writeln!(
+                out,
+                "    {:<13} default {:<18} range {:<15} {}{kind}",
+                s.name,
+                default,
+                s.range_text(),
+                s.doc
+            )?;
         }
     }
     Ok(())

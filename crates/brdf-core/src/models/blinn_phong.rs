@@ -1,4 +1,6 @@
-use super::{cosine_pdf64, diffuse_probability, half64, pdf_pair, reflect_about_half, sample_mixture};
+use super::{
+    cosine_pdf64, diffuse_probability, half64, pdf_pair, reflect_about_half, sample_mixture,
+};
 use crate::brdf::{Brdf, BrdfSample};
 use crate::error::ParamError;
 use crate::geometry::{cos_power, upper_pair};
@@ -26,8 +28,20 @@ impl BlinnPhong {
     /// The model's parameters.
     pub const PARAMS: &'static [ParamSpec] = &[
         ParamSpec::rgb("kd", [0.5; 3], 0.0, 1.0, "diffuse reflectance"),
-        ParamSpec::rgb("ks", [0.5; 3], 0.0, 1.0, "specular albedo at normal incidence"),
-        ParamSpec::scalar("n", 50.0, 0.0, 100_000.0, "half-vector exponent (lobe sharpness)"),
+        ParamSpec::rgb(
+            "ks",
+            [0.5; 3],
+            0.0,
+            1.0,
+            "specular albedo at normal incidence",
+        ),
+        ParamSpec::scalar(
+            "n",
+            50.0,
+            0.0,
+            100_000.0,
+            "half-vector exponent (lobe sharpness)",
+        ),
     ];
 
     /// The exact normalisation N(n) = (n+2)(n+4)/(8π(2^{−n/2} + n)).
@@ -38,8 +52,18 @@ impl BlinnPhong {
 
     /// A Blinn-Phong BRDF; every value in its range ([`BlinnPhong::PARAMS`]).
     pub fn new(kd: Vec3, ks: Vec3, n: f32) -> Result<Self, ParamError> {
-        let (kd, ks, n) = (Self::PARAMS[0].check_rgb(kd)?, Self::PARAMS[1].check_rgb(ks)?, Self::PARAMS[2].check_scalar(n)?);
-        Ok(Self { kd, ks, n, norm: Self::normalization(f64::from(n)), p_diffuse: diffuse_probability(kd, ks) })
+        let (kd, ks, n) = (
+            Self::PARAMS[0].check_rgb(kd)?,
+            Self::PARAMS[1].check_rgb(ks)?,
+            Self::PARAMS[2].check_scalar(n)?,
+        );
+        Ok(Self {
+            kd,
+            ks,
+            n,
+            norm: Self::normalization(f64::from(n)),
+            p_diffuse: diffuse_probability(kd, ks),
+        })
     }
 
     /// Builds from a validated parameter set.
@@ -63,7 +87,11 @@ impl Brdf for BlinnPhong {
         ParamSet::from_checked(
             self.name(),
             Self::PARAMS,
-            &[ParamValue::Rgb(self.kd), ParamValue::Rgb(self.ks), ParamValue::Scalar(self.n)],
+            &[
+                ParamValue::Rgb(self.kd),
+                ParamValue::Rgb(self.ks),
+                ParamValue::Scalar(self.n),
+            ],
         )
     }
 

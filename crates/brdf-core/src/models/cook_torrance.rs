@@ -1,4 +1,6 @@
-use super::{cosine_pdf64, diffuse_probability, half64, pdf_pair, reflect_about_half, sample_mixture};
+use super::{
+    cosine_pdf64, diffuse_probability, half64, pdf_pair, reflect_about_half, sample_mixture,
+};
 use crate::brdf::{Brdf, BrdfSample};
 use crate::error::ParamError;
 use crate::geometry::upper_pair;
@@ -24,19 +26,41 @@ pub struct CookTorrance {
 impl CookTorrance {
     /// The model's parameters.
     pub const PARAMS: &'static [ParamSpec] = &[
-        ParamSpec::scalar("m", 0.2, 0.001, 1.0, "RMS microfacet slope (Beckmann roughness)"),
-        ParamSpec::rgb("f0", [0.95, 0.64, 0.54], 0.0, 0.999, "Fresnel reflectance at normal incidence"),
+        ParamSpec::scalar(
+            "m",
+            0.2,
+            0.001,
+            1.0,
+            "RMS microfacet slope (Beckmann roughness)",
+        ),
+        ParamSpec::rgb(
+            "f0",
+            [0.95, 0.64, 0.54],
+            0.0,
+            0.999,
+            "Fresnel reflectance at normal incidence",
+        ),
         ParamSpec::rgb("kd", [0.0; 3], 0.0, 1.0, "diffuse reflectance"),
     ];
 
     /// A Cook-Torrance BRDF; every value in its range ([`CookTorrance::PARAMS`]).
     pub fn new(m: f32, f0: Vec3, kd: Vec3) -> Result<Self, ParamError> {
-        let (m, f0, kd) = (Self::PARAMS[0].check_scalar(m)?, Self::PARAMS[1].check_rgb(f0)?, Self::PARAMS[2].check_rgb(kd)?);
+        let (m, f0, kd) = (
+            Self::PARAMS[0].check_scalar(m)?,
+            Self::PARAMS[1].check_rgb(f0)?,
+            Self::PARAMS[2].check_rgb(kd)?,
+        );
         let eta = f0.as_dvec3().map(|f| {
             let s = m::sqrt(f);
             (1.0 + s) / (1.0 - s)
         });
-        Ok(Self { m, f0, kd, eta, dist: Beckmann { m: f64::from(m) } })
+        Ok(Self {
+            m,
+            f0,
+            kd,
+            eta,
+            dist: Beckmann { m: f64::from(m) },
+        })
     }
 
     /// Builds from a validated parameter set.
@@ -66,7 +90,10 @@ impl CookTorrance {
     }
 
     fn p_diffuse(&self, wi: Vec3) -> f64 {
-        diffuse_probability(self.kd, self.fresnel(f64::from(wi.z).clamp(0.0, 1.0)).as_vec3())
+        diffuse_probability(
+            self.kd,
+            self.fresnel(f64::from(wi.z).clamp(0.0, 1.0)).as_vec3(),
+        )
     }
 
     fn lobe_pdf(&self, wi: DVec3, wo: DVec3) -> f64 {
@@ -92,7 +119,11 @@ impl Brdf for CookTorrance {
         ParamSet::from_checked(
             self.name(),
             Self::PARAMS,
-            &[ParamValue::Scalar(self.m), ParamValue::Rgb(self.f0), ParamValue::Rgb(self.kd)],
+            &[
+                ParamValue::Scalar(self.m),
+                ParamValue::Rgb(self.f0),
+                ParamValue::Rgb(self.kd),
+            ],
         )
     }
 
@@ -109,7 +140,9 @@ impl Brdf for CookTorrance {
     }
 
     fn sample(&self, wi: Vec3, uc: f32, u: Vec2) -> Option<BrdfSample> {
-        sample_mixture(self, wi, uc, u, self.p_diffuse(wi), |u| reflect_about_half(wi, self.dist.sample_h(u)))
+        sample_mixture(self, wi, uc, u, self.p_diffuse(wi), |u| {
+            reflect_about_half(wi, self.dist.sample_h(u))
+        })
     }
 
     fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {

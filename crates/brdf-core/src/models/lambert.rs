@@ -1,6 +1,6 @@
 use crate::brdf::{Brdf, BrdfSample};
 use crate::error::ParamError;
-use crate::geometry::upper_pair;
+use crate::geometry::{above_horizon, upper_pair};
 use crate::param::{ParamSet, ParamSpec, ParamValue};
 use crate::warp::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
 use core::f32::consts::FRAC_1_PI;
@@ -15,12 +15,19 @@ pub struct Lambert {
 
 impl Lambert {
     /// The model's parameters.
-    pub const PARAMS: &'static [ParamSpec] =
-        &[ParamSpec::rgb("albedo", [0.8; 3], 0.0, 1.0, "reflectance: the directional albedo at every angle")];
+    pub const PARAMS: &'static [ParamSpec] = &[ParamSpec::rgb(
+        "albedo",
+        [0.8; 3],
+        0.0,
+        1.0,
+        "reflectance: the directional albedo at every angle",
+    )];
 
     /// A Lambertian surface; `albedo` ∈ [0, 1] per channel.
     pub fn new(albedo: Vec3) -> Result<Self, ParamError> {
-        Ok(Self { albedo: Self::PARAMS[0].check_rgb(albedo)? })
+        Ok(Self {
+            albedo: Self::PARAMS[0].check_rgb(albedo)?,
+        })
     }
 
     /// Builds from a validated parameter set.
@@ -50,7 +57,7 @@ impl Brdf for Lambert {
     }
 
     fn sample(&self, wi: Vec3, _uc: f32, u: Vec2) -> Option<BrdfSample> {
-        if !(wi.z > 0.0 && wi.is_finite()) {
+        if !above_horizon(wi) {
             return None;
         }
         let wo = sample_cosine_hemisphere(u);

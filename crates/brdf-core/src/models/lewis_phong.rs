@@ -23,15 +23,37 @@ pub struct LewisPhong {
 impl LewisPhong {
     /// The model's parameters.
     pub const PARAMS: &'static [ParamSpec] = &[
-        ParamSpec::rgb("kd", [0.5; 3], 0.0, 1.0, "diffuse albedo (kd + ks <= 1 per channel)"),
-        ParamSpec::rgb("ks", [0.5; 3], 0.0, 1.0, "specular albedo at normal incidence (kd + ks <= 1 per channel)"),
-        ParamSpec::scalar("n", 50.0, 0.0, 100_000.0, "specular exponent (lobe sharpness)"),
+        ParamSpec::rgb(
+            "kd",
+            [0.5; 3],
+            0.0,
+            1.0,
+            "diffuse albedo (kd + ks <= 1 per channel)",
+        ),
+        ParamSpec::rgb(
+            "ks",
+            [0.5; 3],
+            0.0,
+            1.0,
+            "specular albedo at normal incidence (kd + ks <= 1 per channel)",
+        ),
+        ParamSpec::scalar(
+            "n",
+            50.0,
+            0.0,
+            100_000.0,
+            "specular exponent (lobe sharpness)",
+        ),
     ];
 
     /// A Lewis-Phong BRDF; values in range and kd + ks ≤ 1 per channel
     /// ([`ParamError::Constraint`] otherwise).
     pub fn new(kd: Vec3, ks: Vec3, n: f32) -> Result<Self, ParamError> {
-        let (kd, ks, n) = (Self::PARAMS[0].check_rgb(kd)?, Self::PARAMS[1].check_rgb(ks)?, Self::PARAMS[2].check_scalar(n)?);
+        let (kd, ks, n) = (
+            Self::PARAMS[0].check_rgb(kd)?,
+            Self::PARAMS[1].check_rgb(ks)?,
+            Self::PARAMS[2].check_scalar(n)?,
+        );
         check_energy("lewis-phong", kd, ks)?;
         Ok(Self {
             kd,
@@ -55,7 +77,10 @@ pub(crate) fn check_energy(model: &'static str, kd: Vec3, ks: Vec3) -> Result<()
     if s.max_element() > 1.0 + 1e-6 {
         return Err(ParamError::Constraint {
             model,
-            message: format!("kd + ks must be <= 1 in every channel (got {}, {}, {})", s.x, s.y, s.z),
+            message: format!(
+                "kd + ks must be <= 1 in every channel (got {}, {}, {})",
+                s.x, s.y, s.z
+            ),
         });
     }
     Ok(())
@@ -70,7 +95,11 @@ impl Brdf for LewisPhong {
         ParamSet::from_checked(
             self.name(),
             Self::PARAMS,
-            &[ParamValue::Rgb(self.kd), ParamValue::Rgb(self.ks), ParamValue::Scalar(self.n)],
+            &[
+                ParamValue::Rgb(self.kd),
+                ParamValue::Rgb(self.ks),
+                ParamValue::Scalar(self.n),
+            ],
         )
     }
 

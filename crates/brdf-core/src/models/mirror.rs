@@ -1,6 +1,6 @@
 use crate::brdf::{Brdf, BrdfSample, PeakHints};
 use crate::error::ParamError;
-use crate::geometry::mirror;
+use crate::geometry::{above_horizon, mirror};
 use crate::param::{ParamSet, ParamSpec, ParamValue};
 use glam::{Vec2, Vec3};
 
@@ -14,12 +14,19 @@ pub struct Mirror {
 
 impl Mirror {
     /// The model's parameters.
-    pub const PARAMS: &'static [ParamSpec] =
-        &[ParamSpec::rgb("reflectance", [1.0; 3], 0.0, 1.0, "fraction of the radiance reflected into the mirror direction")];
+    pub const PARAMS: &'static [ParamSpec] = &[ParamSpec::rgb(
+        "reflectance",
+        [1.0; 3],
+        0.0,
+        1.0,
+        "fraction of the radiance reflected into the mirror direction",
+    )];
 
     /// A perfect mirror; `reflectance` ∈ [0, 1] per channel.
     pub fn new(reflectance: Vec3) -> Result<Self, ParamError> {
-        Ok(Self { reflectance: Self::PARAMS[0].check_rgb(reflectance)? })
+        Ok(Self {
+            reflectance: Self::PARAMS[0].check_rgb(reflectance)?,
+        })
     }
 
     /// Builds from a validated parameter set.
@@ -34,7 +41,11 @@ impl Brdf for Mirror {
     }
 
     fn params(&self) -> ParamSet {
-        ParamSet::from_checked(self.name(), Self::PARAMS, &[ParamValue::Rgb(self.reflectance)])
+        ParamSet::from_checked(
+            self.name(),
+            Self::PARAMS,
+            &[ParamValue::Rgb(self.reflectance)],
+        )
     }
 
     fn eval(&self, _wi: Vec3, _wo: Vec3) -> Vec3 {
@@ -46,7 +57,11 @@ impl Brdf for Mirror {
     }
 
     fn delta_reflectance(&self, wi: Vec3) -> Vec3 {
-        if wi.z > 0.0 && wi.is_finite() { self.reflectance } else { Vec3::ZERO }
+        if above_horizon(wi) {
+            self.reflectance
+        } else {
+            Vec3::ZERO
+        }
     }
 
     fn peak_hints(&self, wi: Vec3) -> PeakHints {

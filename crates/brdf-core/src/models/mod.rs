@@ -21,7 +21,7 @@ pub use schlick::Schlick;
 pub use ward::Ward;
 
 use crate::brdf::{Brdf, BrdfSample};
-use crate::geometry::luminance;
+use crate::geometry::{above_horizon, luminance};
 use crate::warp::{sample_cosine_hemisphere, sample_power_cosine64};
 use core::f64::consts::FRAC_1_PI;
 use glam::{DVec3, Vec2, Vec3};
@@ -46,7 +46,7 @@ pub(crate) fn sample_mixture<B: Brdf + ?Sized>(
     p_diffuse: f64,
     lobe: impl FnOnce(Vec2) -> Option<Vec3>,
 ) -> Option<BrdfSample> {
-    if !(wi.z > 0.0 && wi.is_finite()) {
+    if !above_horizon(wi) {
         return None;
     }
     let wo = if f64::from(uc) < p_diffuse {

@@ -1,6 +1,6 @@
 use crate::brdf::{Brdf, BrdfSample, PeakHints};
 use crate::error::ParamError;
-use crate::geometry::{cos_delta_phi64, mirror, upper_pair};
+use crate::geometry::{above_horizon, cos_delta_phi64, mirror, upper_pair};
 use crate::math as m;
 use crate::param::{ParamSet, ParamSpec, ParamValue};
 use crate::warp::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
@@ -24,12 +24,21 @@ impl OrenNayar {
     /// The model's parameters.
     pub const PARAMS: &'static [ParamSpec] = &[
         ParamSpec::rgb("albedo", [0.8; 3], 0.0, 1.0, "facet albedo ρ"),
-        ParamSpec::scalar("sigma", 0.35, 0.0, 1.5, "standard deviation of the facet slope angle, radians"),
+        ParamSpec::scalar(
+            "sigma",
+            0.35,
+            0.0,
+            1.5,
+            "standard deviation of the facet slope angle, radians",
+        ),
     ];
 
     /// An Oren-Nayar BRDF; every value in its range ([`OrenNayar::PARAMS`]).
     pub fn new(albedo: Vec3, sigma: f32) -> Result<Self, ParamError> {
-        let (albedo, sigma) = (Self::PARAMS[0].check_rgb(albedo)?, Self::PARAMS[1].check_scalar(sigma)?);
+        let (albedo, sigma) = (
+            Self::PARAMS[0].check_rgb(albedo)?,
+            Self::PARAMS[1].check_scalar(sigma)?,
+        );
         let s2 = f64::from(sigma) * f64::from(sigma);
         Ok(Self {
             albedo,
@@ -53,7 +62,11 @@ impl Brdf for OrenNayar {
     }
 
     fn params(&self) -> ParamSet {
-        ParamSet::from_checked(self.name(), Self::PARAMS, &[ParamValue::Rgb(self.albedo), ParamValue::Scalar(self.sigma)])
+        ParamSet::from_checked(
+            self.name(),
+            Self::PARAMS,
+            &[ParamValue::Rgb(self.albedo), ParamValue::Scalar(self.sigma)],
+        )
     }
 
     fn eval(&self, wi: Vec3, wo: Vec3) -> Vec3 {
@@ -77,7 +90,8 @@ impl Brdf for OrenNayar {
         };
         let q = 4.0 * alpha * beta / (PI * PI);
         let c3 = self.c3 * q * q;
-        let direct = self.c1 + cdp * c2 * tan_beta + (1.0 - cdp.abs()) * c3 * m::tan(0.5 * (alpha + beta));
+        let direct =
+            self.c1 + cdp * c2 * tan_beta + (1.0 - cdp.abs()) * c3 * m::tan(0.5 * (alpha + beta));
         let inter = self.c4 * (1.0 - cdp * b2p * b2p);
         self.albedo
             .as_dvec3()
@@ -99,7 +113,7 @@ impl Brdf for OrenNayar {
     }
 
     fn sample(&self, wi: Vec3, _uc: f32, u: Vec2) -> Option<BrdfSample> {
-        if !(wi.z > 0.0 && wi.is_finite()) {
+        if !above_horizon(wi) {
             return None;
         }
         let wo = sample_cosine_hemisphere(u);

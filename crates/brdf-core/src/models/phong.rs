@@ -23,15 +23,37 @@ impl Phong {
     /// The model's parameters.
     pub const PARAMS: &'static [ParamSpec] = &[
         ParamSpec::rgb("kd", [0.5; 3], 0.0, 1.0, "diffuse reflectance"),
-        ParamSpec::rgb("ks", [0.5; 3], 0.0, 1.0, "specular coefficient (peak value of the lobe, 1/sr)"),
-        ParamSpec::scalar("n", 50.0, 0.0, 100_000.0, "specular exponent (lobe sharpness)"),
+        ParamSpec::rgb(
+            "ks",
+            [0.5; 3],
+            0.0,
+            1.0,
+            "specular coefficient (peak value of the lobe, 1/sr)",
+        ),
+        ParamSpec::scalar(
+            "n",
+            50.0,
+            0.0,
+            100_000.0,
+            "specular exponent (lobe sharpness)",
+        ),
     ];
 
     /// A Phong BRDF; every value must lie in its range ([`Phong::PARAMS`]).
     pub fn new(kd: Vec3, ks: Vec3, n: f32) -> Result<Self, ParamError> {
-        let (kd, ks, n) = (Self::PARAMS[0].check_rgb(kd)?, Self::PARAMS[1].check_rgb(ks)?, Self::PARAMS[2].check_scalar(n)?);
+        let (kd, ks, n) = (
+            Self::PARAMS[0].check_rgb(kd)?,
+            Self::PARAMS[1].check_rgb(ks)?,
+            Self::PARAMS[2].check_scalar(n)?,
+        );
         let lobe_albedo = ks * (2.0 * PI / (f64::from(n) + 2.0)) as f32;
-        Ok(Self { kd, ks, n, lobe: MirrorLobe { n: f64::from(n) }, p_diffuse: diffuse_probability(kd, lobe_albedo) })
+        Ok(Self {
+            kd,
+            ks,
+            n,
+            lobe: MirrorLobe { n: f64::from(n) },
+            p_diffuse: diffuse_probability(kd, lobe_albedo),
+        })
     }
 
     /// Builds from a validated parameter set.
@@ -49,7 +71,11 @@ impl Brdf for Phong {
         ParamSet::from_checked(
             self.name(),
             Self::PARAMS,
-            &[ParamValue::Rgb(self.kd), ParamValue::Rgb(self.ks), ParamValue::Scalar(self.n)],
+            &[
+                ParamValue::Rgb(self.kd),
+                ParamValue::Rgb(self.ks),
+                ParamValue::Scalar(self.n),
+            ],
         )
     }
 

@@ -24,14 +24,37 @@ impl Schlick {
     /// The model's parameters.
     pub const PARAMS: &'static [ParamSpec] = &[
         ParamSpec::rgb("c", [0.5; 3], 0.0, 1.0, "reflectance at normal incidence"),
-        ParamSpec::scalar("r", 0.3, 0.001, 1.0, "roughness (0 mirror-like, 1 diffuse-like)"),
-        ParamSpec::scalar("p", 1.0, 0.001, 1.0, "isotropy (1 isotropic; small = anisotropic along x)"),
+        ParamSpec::scalar(
+            "r",
+            0.3,
+            0.001,
+            1.0,
+            "roughness (0 mirror-like, 1 diffuse-like)",
+        ),
+        ParamSpec::scalar(
+            "p",
+            1.0,
+            0.001,
+            1.0,
+            "isotropy (1 isotropic; small = anisotropic along x)",
+        ),
     ];
 
     /// A Schlick BRDF; every value in its range ([`Schlick::PARAMS`]).
     pub fn new(c: Vec3, r: f32, p: f32) -> Result<Self, ParamError> {
-        let (c, r, p) = (Self::PARAMS[0].check_rgb(c)?, Self::PARAMS[1].check_scalar(r)?, Self::PARAMS[2].check_scalar(p)?);
-        Ok(Self { c, r, p, ggx: Ggx { alpha2: f64::from(r) } })
+        let (c, r, p) = (
+            Self::PARAMS[0].check_rgb(c)?,
+            Self::PARAMS[1].check_scalar(r)?,
+            Self::PARAMS[2].check_scalar(p)?,
+        );
+        Ok(Self {
+            c,
+            r,
+            p,
+            ggx: Ggx {
+                alpha2: f64::from(r),
+            },
+        })
     }
 
     /// Builds from a validated parameter set.
@@ -49,7 +72,11 @@ impl Brdf for Schlick {
         ParamSet::from_checked(
             self.name(),
             Self::PARAMS,
-            &[ParamValue::Rgb(self.c), ParamValue::Scalar(self.r), ParamValue::Scalar(self.p)],
+            &[
+                ParamValue::Rgb(self.c),
+                ParamValue::Scalar(self.r),
+                ParamValue::Scalar(self.p),
+            ],
         )
     }
 
@@ -68,7 +95,10 @@ impl Brdf for Schlick {
         let g = (r + (1.0 - r) * wi.z) * (r + (1.0 - r) * wo.z);
         let k = z * a / (4.0 * PI * g);
         let f5 = m::pow(1.0 - u, 5.0);
-        self.c.as_dvec3().map(|c| (c + (1.0 - c) * f5) * k).as_vec3()
+        self.c
+            .as_dvec3()
+            .map(|c| (c + (1.0 - c) * f5) * k)
+            .as_vec3()
     }
 
     fn has_analytic_sampler(&self) -> bool {
@@ -76,7 +106,9 @@ impl Brdf for Schlick {
     }
 
     fn sample(&self, wi: Vec3, uc: f32, u: Vec2) -> Option<BrdfSample> {
-        sample_mixture(self, wi, uc, u, 0.0, |u| reflect_about_half(wi, self.ggx.sample_h(u)))
+        sample_mixture(self, wi, uc, u, 0.0, |u| {
+            reflect_about_half(wi, self.ggx.sample_h(u))
+        })
     }
 
     fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {

@@ -1,4 +1,6 @@
-use super::{cosine_pdf64, diffuse_probability, half64, pdf_pair, reflect_about_half, sample_mixture};
+use super::{
+    cosine_pdf64, diffuse_probability, half64, pdf_pair, reflect_about_half, sample_mixture,
+};
 use crate::brdf::{Brdf, BrdfSample};
 use crate::error::ParamError;
 use crate::geometry::upper_pair;
@@ -43,14 +45,22 @@ impl Ward {
             ks,
             alpha_x,
             alpha_y,
-            lobe: WardLobe { alpha_x: f64::from(alpha_x), alpha_y: f64::from(alpha_y) },
+            lobe: WardLobe {
+                alpha_x: f64::from(alpha_x),
+                alpha_y: f64::from(alpha_y),
+            },
             p_diffuse: diffuse_probability(kd, ks),
         })
     }
 
     /// Builds from a validated parameter set.
     pub fn from_params(p: &ParamSet) -> Result<Self, ParamError> {
-        Self::new(p.rgb("kd")?, p.rgb("ks")?, p.scalar("alpha_x")?, p.scalar("alpha_y")?)
+        Self::new(
+            p.rgb("kd")?,
+            p.rgb("ks")?,
+            p.scalar("alpha_x")?,
+            p.scalar("alpha_y")?,
+        )
     }
 
     fn lobe_pdf(&self, wi: DVec3, wo: DVec3) -> f64 {
@@ -93,7 +103,9 @@ impl Brdf for Ward {
     }
 
     fn sample(&self, wi: Vec3, uc: f32, u: Vec2) -> Option<BrdfSample> {
-        sample_mixture(self, wi, uc, u, self.p_diffuse, |u| reflect_about_half(wi, self.lobe.sample_h(u)))
+        sample_mixture(self, wi, uc, u, self.p_diffuse, |u| {
+            reflect_about_half(wi, self.lobe.sample_h(u))
+        })
     }
 
     fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
