@@ -35,7 +35,7 @@ pub mod error;
 mod frame;
 pub mod geometry;
 pub mod maps;
-mod math;
+pub mod math;
 pub mod microfacet;
 pub mod models;
 pub mod param;

@@ -1,4 +1,4 @@
-//! The one place that picks the float backend (`std` or `libm`), glam-style.
+//! The float backend (`std` or `libm`), glam-style: the one place that chooses it.
 //!
 //! Every transcendental call in the crate goes through these functions, so a `no_std` build
 //! only has to swap this file's backend. Names follow libm: an `f` suffix is the `f32` version.
@@ -10,9 +10,10 @@ compile_error!(
 
 macro_rules! backend {
     ($( $name:ident ( $($arg:ident),* ) : $t:ty => $std:ident, $libm:ident; )*) => {$(
+        #[doc = concat!("`", stringify!($name), "` through the selected backend (std's `", stringify!($std), "` or libm's `", stringify!($libm), "`).")]
         #[inline(always)]
         #[must_use]
-        pub(crate) fn $name($($arg: $t),*) -> $t {
+        pub fn $name($($arg: $t),*) -> $t {
             #[cfg(feature = "std")]
             { <$t>::$std($($arg),*) }
             #[cfg(all(not(feature = "std"), feature = "libm"))]
@@ -35,6 +36,7 @@ backend! {
     cos(x): f64 => cos, cos;
     tan(x): f64 => tan, tan;
     acos(x): f64 => acos, acos;
+    asin(x): f64 => asin, asin;
     atan2f(y, x): f32 => atan2, atan2f;
     atan2(y, x): f64 => atan2, atan2;
 }

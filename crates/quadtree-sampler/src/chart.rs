@@ -1,0 +1,519 @@
+//! Coordinates in which a node is integrated and rejection-sampled.
+//!
+//! A node is a square of the seed's domain [−1,1]². f_r on that square is smooth in the
+//! interior of the disk, but two things break a plain tensor rule or a plain height bound:
+//! the disk's rim (f jumps to 0 outside it, z = √(1 − r²) has an infinite slope, and some
+//! models — Ward — grow like 1/√z there) and, for the concentric map, the kinks of the map
+//! along the square's diagonals. Each is removed by a change of variables:
+//!
+//! - **Orthographic map**, angle coordinates (a, t): x = sin a, y = cos a·sin t,
+//!   z = cos a·cos t, dx dy = cos²a·cos t da dt. The rim is a coordinate boundary, z is a
+//!   product of cosines (no cancellation) and f·cos²a·cos t stays bounded where f ~ z^{−1/2}.
+//!   Integration is iterated: outer a (split where the rim crosses the node's horizontal
+//!   edges, pieces remapped near those points to absorb the limits' square-root
+//!   singularities), inner t between the node's edges.
+//! - **Concentric map**, sine coordinates (α, β): a = sin α, b = sin β, da db = cos α cos β
+//!   dα dβ; z = cos α or cos β exactly. The map's kinks (|a| = |b|) stay straight diagonals,
+//!   along which a node is split into triangles.
+//!
+//! Sampling uses the seed's uniform (x, y) proposal in every leaf that stays off the rim
+//! ([`Chart::Square`]), and the bounded angle or sine proposal in leaves that touch it.
+
+use brdf_core::math as m;
+use brdf_core::DiskMap;
+use brdf_core::quadrature::GaussLegendre;
+use core::f64::consts::{FRAC_PI_2, FRAC_PI_4};
+use glam::{DVec2, DVec3};
+
+/// An axis-aligned square (or rectangle) of the seed's domain, in f64.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Rect {
+    /// Lower-left corner (u, v).
+    pub min: DVec2,
+    /// Upper-right corner.
+    pub max: DVec2,
+}
+
+impl Rect {
+    /// The square [x, x+s) × [y, y+s).
+    #[must_use]
+    pub fn square(x: f64, y: f64, s: f64) -> Self {
+        Self { min: DVec2::new(x, y), max: DVec2::new(x + s, y + s) }
+    }
+
+    /// The four quadrants, in the order (−,−), (+,−), (−,+), (+,+).
+    #[must_use]
+    pub fn quadrants(&self) -> [Self; 4] {
+        let c = 0.5 * (self.min + self.max);
+        [
+            Self { min: self.min, max: c },
+            Self { min: DVec2::new(c.x, self.min.y), max: DVec2::new(self.max.x, c.y) },
+            Self { min: DVec2::new(self.min.x, c.y), max: DVec2::new(c.x, self.max.y) },
+            Self { min: c, max: self.max },
+        ]
+    }
+
+    /// Distance from the origin of the nearest and the farthest point.
+    #[must_use]
+    pub fn radius_range(&self) -> (f64, f64) {
+        let near = DVec2::new(
+            0.0f64.clamp(self.min.x, self.max.x),
+            0.0f64.clamp(self.min.y, self.max.y),
+        );
+        let far = DVec2::new(
+            self.min.x.abs().max(self.max.x.abs()),
+            self.min.y.abs().max(self.max.y.abs()),
+        );
+        (near.length(), far.length())
+    }
+
+    /// Whether `p` lies in the closed rectangle.
+    #[must_use]
+    pub fn contains(&self, p: DVec2) -> bool {
+        p.x >= self.min.x && p.x <= self.max.x && p.y >= self.min.y && p.y <= self.max.y
+    }
+}
+
+/// The coordinates a leaf is rejection-sampled in (see the module doc).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Chart {
+    /// The seed's proposal: (x, y) uniform in the square, Jacobian 1.
+    Square,
+    /// Orthographic angle coordinates (a, t), for leaves that touch the rim.
+    Angle,
+    /// Concentric sine coordinates (α, β), for leaves that touch the square's edge.
+    Sine,
+}
+
+/// A point of a chart mapped to the square and the hemisphere.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChartPoint {
+    /// The point of the seed's square [−1,1]².
+    pub p: DVec2,
+    /// The unit local direction (z ≥ 0).
+    pub w: DVec3,
+    /// Square area per unit chart area at this point.
+    pub jacobian: f64,
+}
+
+/// The orthographic map's angle chart: (a, t) → point, direction and Jacobian cos²a·cos t.
+#[inline]
+#[must_use]
+pub fn angle_point(a: f64, t: f64) -> ChartPoint {
+    let (sa, ca) = (m::sin(a), m::cos(a));
+    let (st, ct) = (m::sin(t), m::cos(t));
+    let p = DVec2::new(sa, ca * st);
+    ChartPoint { p, w: DVec3::new(sa, ca * st, ca * ct), jacobian: ca * ca * ct }
+}
+
+/// The concentric map at a square point given by its sine coordinates (α, β), with z exact.
+#[inline]
+#[must_use]
+pub fn sine_point(alpha: f64, beta: f64) -> ChartPoint {
+    let (sa, ca) = (m::sin(alpha), m::cos(alpha));
+    let (sb, cb) = (m::sin(beta), m::cos(beta));
+    let p = DVec2::new(sa, sb);
+    // r = max(|a|, |b|), and z = √(1 − r²) is the cosine of the larger angle.
+    let z = if sa.abs() >= sb.abs() { ca } else { cb };
+    ChartPoint { p, w: concentric_direction(p, z), jacobian: ca * cb }
+}
+
+/// The concentric map's direction at square point `p` with its z already known.
+#[inline]
+fn concentric_direction(p: DVec2, z: f64) -> DVec3 {
+    let (a, b) = (p.x, p.y);
+    if a == 0.0 && b == 0.0 {
+        return DVec3::new(0.0, 0.0, 1.0);
+    }
+    let (r, phi) = if a.abs() > b.abs() {
+        (a, FRAC_PI_4 * (b / a))
+    } else {
+        (b, FRAC_PI_2 - FRAC_PI_4 * (a / b))
+    };
+    DVec3::new(r * m::cos(phi), r * m::sin(phi), z)
+}
+
+/// The direction of square point `p` under `map` (None outside the orthographic disk), with
+/// z computed without cancellation.
+#[inline]
+#[must_use]
+pub fn square_direction(map: DiskMap, p: DVec2) -> Option<DVec3> {
+    match map {
+        DiskMap::Orthographic => {
+            let r2 = p.length_squared();
+            if r2 > 1.0 {
+                return None;
+            }
+            Some(DVec3::new(p.x, p.y, m::sqrt((1.0 - r2).max(0.0))))
+        }
+        DiskMap::Concentric => {
+            let r = p.x.abs().max(p.y.abs()).min(1.0);
+            Some(concentric_direction(p, m::sqrt((1.0 - r) * (1.0 + r))))
+        }
+    }
+}
+
+/// A Gauss–Legendre rule on [0, 1] (nodes, weights), shared by all integrations of a build.
+#[derive(Clone, Debug)]
+pub struct UnitRule {
+    nodes: alloc::vec::Vec<f64>,
+    weights: alloc::vec::Vec<f64>,
+}
+
+impl UnitRule {
+    /// The n-point rule on [0, 1].
+    #[must_use]
+    pub fn new(n: usize) -> Self {
+        let gl = GaussLegendre::new(n);
+        Self {
+            nodes: gl.nodes().iter().map(|x| 0.5 * (x + 1.0)).collect(),
+            weights: gl.weights().iter().map(|w| 0.5 * w).collect(),
+        }
+    }
+
+    /// The n-point midpoint rule on [0, 1] (the seed's uniform grid).
+    #[must_use]
+    pub fn midpoint(n: usize) -> Self {
+        let n = n.max(1);
+        Self {
+            nodes: (0..n).map(|i| (i as f64 + 0.5) / n as f64).collect(),
+            weights: alloc::vec![1.0 / n as f64; n],
+        }
+    }
+
+    /// (x, w) on [a, b].
+    #[inline]
+    pub fn on(&self, a: f64, b: f64) -> impl Iterator<Item = (f64, f64)> + '_ {
+        let h = b - a;
+        self.nodes.iter().zip(&self.weights).map(move |(&x, &w)| (a + h * x, h * w))
+    }
+}
+
+/// ∫ f over `rect` ∩ disk with f given per direction (the square measure dx dy), by the map's
+/// chart rule (one application, no adaptivity). `f` returns f_r's luminance.
+pub fn integrate_once(map: DiskMap, rect: &Rect, rule: &UnitRule, f: &impl Fn(DVec3) -> f64) -> f64 {
+    match map {
+        DiskMap::Orthographic => integrate_angle(rect, rule, f),
+        DiskMap::Concentric => integrate_sine(rect, rule, f),
+    }
+}
+
+fn integrate_angle(rect: &Rect, rule: &UnitRule, f: &impl Fn(DVec3) -> f64) -> f64 {
+    let (xa, xb) = (rect.min.x.clamp(-1.0, 1.0), rect.max.x.clamp(-1.0, 1.0));
+    if xa >= xb {
+        return 0.0;
+    }
+    let (a0, a1) = (m::asin(xa), m::asin(xb));
+    // Breakpoints: where the rim crosses the node's horizontal edges, |y| = cos a. There the
+    // inner limit asin(y / cos a) has a square-root singularity; a piece ending at one is
+    // remapped so that a − a_end ∝ u² (smoothstep at two such ends, u² at one), which removes
+    // it. Node edges (x = const) are not singular and keep the plain rule.
+    let mut cuts = [(a0, false); 6];
+    let mut n = 1;
+    for y in [rect.min.y, rect.max.y] {
+        if y.abs() < 1.0 {
+            let c = m::acos(y.abs());
+            for a in [-c, c] {
+                if a > a0 && a < a1 {
+                    cuts[n] = (a, true);
+                    n += 1;
+                }
+            }
+        }
+    }
+    cuts[n] = (a1, false);
+    let cuts = &mut cuts[..=n];
+    cuts.sort_unstable_by(|x, y| x.0.total_cmp(&y.0));
+    let mut total = 0.0;
+    for piece in cuts.windows(2) {
+        let ((p0, s0), (p1, s1)) = (piece[0], piece[1]);
+        for (u, wu) in rule.on(0.0, 1.0) {
+            let (a, wa) = remap(p0, p1, s0, s1, u, wu);
+            let ca = m::cos(a);
+            let (ylo, yhi) = (rect.min.y.max(-ca), rect.max.y.min(ca));
+            if ylo >= yhi || ca <= 0.0 {
+                continue;
+            }
+            let (t0, t1) = (m::asin((ylo / ca).clamp(-1.0, 1.0)), m::asin((yhi / ca).clamp(-1.0, 1.0)));
+            // A limit on the rim (t = ±π/2) is where f may grow like z^{-1/2}: remap it too.
+            let (r0, r1) = (ylo <= -ca, yhi >= ca);
+            let mut inner = 0.0;
+            for (u, wu) in rule.on(0.0, 1.0) {
+                let (t, wt) = remap(t0, t1, r0, r1, u, wu);
+                let q = angle_point(a, t);
+                inner += wt * f(q.w) * q.jacobian;
+            }
+            total += wa * inner;
+        }
+    }
+    total
+}
+
+/// Maps u ∈ [0, 1] (weight wu) onto [x0, x1] so that x − end ∝ u² at each end flagged
+/// singular (smoothstep for two, a parabola for one): square-root end singularities become
+/// smooth for Gauss–Legendre. Returns (x, weight).
+#[inline]
+fn remap(x0: f64, x1: f64, s0: bool, s1: bool, u: f64, wu: f64) -> (f64, f64) {
+    let d = x1 - x0;
+    match (s0, s1) {
+        (false, false) => (x0 + d * u, wu * d),
+        (true, false) => (x0 + d * u * u, wu * d * 2.0 * u),
+        (false, true) => (x1 - d * (1.0 - u) * (1.0 - u), wu * d * 2.0 * (1.0 - u)),
+        (true, true) => (x0 + d * u * u * (3.0 - 2.0 * u), wu * d * 6.0 * u * (1.0 - u)),
+    }
+}
+
+fn integrate_sine(rect: &Rect, rule: &UnitRule, f: &impl Fn(DVec3) -> f64) -> f64 {
+    let s = |x: f64| m::asin(x.clamp(-1.0, 1.0));
+    let (al0, al1, be0, be1) = (s(rect.min.x), s(rect.max.x), s(rect.min.y), s(rect.max.y));
+    let h = |al: f64, be: f64| {
+        let q = sine_point(al, be);
+        f(q.w) * q.jacobian
+    };
+    let diag = rect.min.x == rect.min.y && rect.max.x == rect.max.y;
+    let anti = rect.min.x == -rect.max.y && rect.max.x == -rect.min.y;
+    let c = DVec2::new(0.5 * (al0 + al1), 0.5 * (be0 + be1));
+    let corners = [DVec2::new(al0, be0), DVec2::new(al1, be0), DVec2::new(al1, be1), DVec2::new(al0, be1)];
+    match (diag, anti) {
+        (false, false) => {
+            let mut total = 0.0;
+            for (al, wa) in rule.on(al0, al1) {
+                for (be, wb) in rule.on(be0, be1) {
+                    total += wa * wb * h(al, be);
+                }
+            }
+            total
+        }
+        // Split along the kink line(s): the main diagonal joins corners 0 and 2, the
+        // anti-diagonal corners 1 and 3; with both, four triangles meet at the centre.
+        (true, false) => triangle(rule, corners[0], corners[1], corners[2], &h) + triangle(rule, corners[0], corners[2], corners[3], &h),
+        (false, true) => triangle(rule, corners[1], corners[2], corners[3], &h) + triangle(rule, corners[1], corners[3], corners[0], &h),
+        (true, true) => (0..4).map(|k| triangle(rule, c, corners[k], corners[(k + 1) % 4], &h)).sum(),
+    }
+}
+
+/// ∫ over the triangle (v0, v1, v2) by the collapsed (Duffy) tensor rule: exact for
+/// polynomials of the rule's degree, no evaluation on the edges.
+fn triangle(rule: &UnitRule, v0: DVec2, v1: DVec2, v2: DVec2, h: &impl Fn(f64, f64) -> f64) -> f64 {
+    let det = ((v1 - v0).perp_dot(v2 - v0)).abs();
+    let mut total = 0.0;
+    for (s, ws) in rule.on(0.0, 1.0) {
+        for (t, wt) in rule.on(0.0, 1.0) {
+            let p = v0 + s * (v1 - v0) + s * t * (v2 - v1);
+            total += ws * wt * s * h(p.x, p.y);
+        }
+    }
+    total * det
+}
+
+/// Adaptive ∫ f over `rect` ∩ disk: compares one application of the rule with the sum over
+/// the four quadrants and recurses where they differ by more than `tol` (each quadrant with
+/// half the tolerance), at most `depth` levels. Returns the refined estimate.
+pub fn integrate_adaptive(
+    map: DiskMap,
+    rect: &Rect,
+    rule: &UnitRule,
+    tol: f64,
+    depth: u32,
+    f: &impl Fn(DVec3) -> f64,
+) -> f64 {
+    let coarse = integrate_once(map, rect, rule, f);
+    refine(map, rect, coarse, rule, tol, depth, f)
+}
+
+fn refine(map: DiskMap, rect: &Rect, coarse: f64, rule: &UnitRule, tol: f64, depth: u32, f: &impl Fn(DVec3) -> f64) -> f64 {
+    let quads = rect.quadrants();
+    let parts = quads.map(|q| integrate_once(map, &q, rule, f));
+    let fine: f64 = parts.iter().sum();
+    if depth == 0 || (fine - coarse).abs() <= tol {
+        return fine;
+    }
+    quads.iter().zip(parts).map(|(q, c)| refine(map, q, c, rule, 0.5 * tol, depth - 1, f)).sum()
+}
+
+/// The box of a leaf in its sampling chart, and the map from chart coordinates back.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Proposal {
+    /// The chart.
+    pub chart: Chart,
+    /// Lower corner of the box in chart coordinates.
+    pub lo: DVec2,
+    /// Upper corner.
+    pub hi: DVec2,
+}
+
+impl Proposal {
+    /// The proposal for a node: the seed's square unless the node touches the rim
+    /// (orthographic) or the square's edge (concentric).
+    #[must_use]
+    pub fn for_node(map: DiskMap, rect: &Rect) -> Self {
+        match map {
+            DiskMap::Orthographic => {
+                let (_, far) = rect.radius_range();
+                if far < 1.0 - 1e-12 {
+                    return Self { chart: Chart::Square, lo: rect.min, hi: rect.max };
+                }
+                let (xa, xb) = (rect.min.x.clamp(-1.0, 1.0), rect.max.x.clamp(-1.0, 1.0));
+                let (a0, a1) = (m::asin(xa), m::asin(xb));
+                // t = asin(y / cos a) over the node: extremes at the a-ends or at a = 0.
+                let (mut tlo, mut thi) = (f64::INFINITY, f64::NEG_INFINITY);
+                let mut consider = |a: f64| {
+                    let ca = m::cos(a);
+                    if ca <= 0.0 {
+                        return;
+                    }
+                    let lo = m::asin((rect.min.y / ca).clamp(-1.0, 1.0));
+                    let hi = m::asin((rect.max.y / ca).clamp(-1.0, 1.0));
+                    tlo = tlo.min(lo);
+                    thi = thi.max(hi);
+                };
+                consider(a0);
+                consider(a1);
+                if a0 < 0.0 && a1 > 0.0 {
+                    consider(0.0);
+                }
+                if !(tlo < thi) {
+                    (tlo, thi) = (-FRAC_PI_2, FRAC_PI_2);
+                }
+                Self { chart: Chart::Angle, lo: DVec2::new(a0, tlo), hi: DVec2::new(a1, thi) }
+            }
+            DiskMap::Concentric => {
+                let edge = rect.min.x <= -1.0 || rect.min.y <= -1.0 || rect.max.x >= 1.0 || rect.max.y >= 1.0;
+                if !edge {
+                    return Self { chart: Chart::Square, lo: rect.min, hi: rect.max };
+                }
+                let s = |x: f64| m::asin(x.clamp(-1.0, 1.0));
+                Self {
+                    chart: Chart::Sine,
+                    lo: DVec2::new(s(rect.min.x), s(rect.min.y)),
+                    hi: DVec2::new(s(rect.max.x), s(rect.max.y)),
+                }
+            }
+        }
+    }
+
+    /// The box's area in chart units.
+    #[must_use]
+    pub fn area(&self) -> f64 {
+        let d = self.hi - self.lo;
+        d.x * d.y
+    }
+
+    /// The chart point at box coordinates `q`, or `None` when it falls outside the node or the
+    /// disk (an automatic rejection).
+    #[inline]
+    #[must_use]
+    pub fn point(&self, map: DiskMap, rect: &Rect, q: DVec2) -> Option<ChartPoint> {
+        match self.chart {
+            Chart::Square => square_direction(map, q).map(|w| ChartPoint { p: q, w, jacobian: 1.0 }),
+            Chart::Angle => {
+                let c = angle_point(q.x, q.y);
+                (c.p.y >= rect.min.y && c.p.y < rect.max.y && c.jacobian > 0.0).then_some(c)
+            }
+            Chart::Sine => Some(sine_point(q.x, q.y)),
+        }
+    }
+
+    /// Chart coordinates of a direction known to lie in this node (inverse of `point`).
+    #[must_use]
+    pub fn coordinates(&self, map: DiskMap, w: DVec3) -> DVec2 {
+        match self.chart {
+            Chart::Square => match map {
+                DiskMap::Orthographic => DVec2::new(w.x, w.y),
+                DiskMap::Concentric => brdf_core::maps::disk_to_square_concentric(w.truncate().as_vec2()).as_dvec2(),
+            },
+            Chart::Angle => {
+                let a = m::asin(w.x.clamp(-1.0, 1.0));
+                let ca = m::cos(a);
+                let t = if ca > 0.0 { m::atan2(w.y, w.z) } else { 0.0 };
+                DVec2::new(a, t)
+            }
+            Chart::Sine => {
+                let p = brdf_core::maps::disk_to_square_concentric(w.truncate().as_vec2()).as_dvec2();
+                DVec2::new(m::asin(p.x.clamp(-1.0, 1.0)), m::asin(p.y.clamp(-1.0, 1.0)))
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use core::f64::consts::PI;
+
+    fn nodes(depth: u32) -> alloc::vec::Vec<Rect> {
+        let n = 1usize << depth;
+        let s = 2.0 / n as f64;
+        (0..n * n).map(|k| Rect::square(-1.0 + (k % n) as f64 * s, -1.0 + (k / n) as f64 * s, s)).collect()
+    }
+
+    /// ∫ 1 over the disk = π (orthographic); over the square = 4 (concentric); ∫ z = 2π/3 on the
+    /// disk; the sums over any dyadic level must reproduce them to near machine precision.
+    #[test]
+    fn chart_rules_integrate_exactly_across_the_rim() {
+        let rule = UnitRule::new(10);
+        for depth in 0..5 {
+            let one: f64 = nodes(depth).iter().map(|r| integrate_once(DiskMap::Orthographic, r, &rule, &|_| 1.0)).sum();
+            // The rim remapping trades a little accuracy on the root's single big piece.
+            let tol = if depth == 0 { 1e-5 } else { 1e-9 };
+            assert!((one - PI).abs() < tol, "depth {depth}: {one}");
+            let z: f64 = nodes(depth).iter().map(|r| integrate_once(DiskMap::Orthographic, r, &rule, &|w| w.z)).sum();
+            assert!((z - 2.0 * PI / 3.0).abs() < tol, "depth {depth}: {z}");
+            let sq: f64 = nodes(depth).iter().map(|r| integrate_once(DiskMap::Concentric, r, &rule, &|_| 1.0)).sum();
+            assert!((sq - 4.0).abs() < 1e-9, "depth {depth}: {sq}");
+            // ∫ z over the concentric square = (4/π) ∫ z dA_disk = (4/π)(2π/3) = 8/3.
+            let zc: f64 = nodes(depth).iter().map(|r| integrate_once(DiskMap::Concentric, r, &rule, &|w| w.z)).sum();
+            assert!((zc - 8.0 / 3.0).abs() < 1e-6, "depth {depth}: {zc}");
+        }
+    }
+
+    #[test]
+    fn single_nodes_match_closed_forms() {
+        let rule = UnitRule::new(8);
+        // Quarter disk [0,1]²: area π/4.
+        let r = Rect::square(0.0, 0.0, 1.0);
+        assert!((integrate_once(DiskMap::Orthographic, &r, &rule, &|_| 1.0) - PI / 4.0).abs() < 1e-9);
+        // A node crossing the rim: [0.5,1]×[0.5,1] ∩ disk, area by the closed form.
+        let r = Rect::square(0.5, 0.5, 0.5);
+        let x0 = (0.75f64).sqrt();
+        // ∫_{0.5}^{x0} (√(1−x²) − 0.5) dx
+        let prim = |x: f64| 0.5 * (x * (1.0 - x * x).sqrt() + x.asin());
+        let exact = prim(x0) - prim(0.5) - 0.5 * (x0 - 0.5);
+        let got = integrate_once(DiskMap::Orthographic, &r, &rule, &|_| 1.0);
+        assert!((got - exact).abs() < 1e-9, "{got} vs {exact}");
+    }
+
+    #[test]
+    fn adaptive_integration_resolves_a_sharp_lobe() {
+        let rule = UnitRule::new(6);
+        // cos^n of the angle to the normal, n = 2000: ∫ z^n dx dy over the disk
+        // = ∫ cos^n θ cos θ dω = 2π/(n+2).
+        let n = 2000.0;
+        let f = |w: DVec3| m::pow(w.z, n);
+        let got = integrate_adaptive(DiskMap::Orthographic, &Rect::square(-1.0, -1.0, 2.0), &rule, 1e-9, 14, &f);
+        let want = 2.0 * PI / (n + 2.0);
+        assert!((got - want).abs() < 1e-6 * want, "{got} vs {want}");
+        let got = integrate_adaptive(DiskMap::Concentric, &Rect::square(-1.0, -1.0, 2.0), &rule, 1e-9, 14, &f);
+        let want = want * 4.0 / PI;
+        assert!((got - want).abs() < 1e-6 * want, "{got} vs {want}");
+    }
+
+    #[test]
+    fn proposals_round_trip() {
+        for map in [DiskMap::Orthographic, DiskMap::Concentric] {
+            for r in nodes(3) {
+                let prop = Proposal::for_node(map, &r);
+                for (i, j) in [(1, 1), (3, 5), (6, 2)] {
+                    let q = prop.lo + (prop.hi - prop.lo) * DVec2::new(f64::from(i) / 7.0, f64::from(j) / 7.0);
+                    let Some(c) = prop.point(map, &r, q) else { continue };
+                    assert!((c.w.length() - 1.0).abs() < 1e-12);
+                    let back = prop.coordinates(map, c.w);
+                    assert!((back - q).length() < 1e-5, "{map:?} {r:?} {q} -> {back}");
+                    if let Some(w2) = square_direction(map, c.p) {
+                        assert!((w2 - c.w).length() < 1e-9);
+                    }
+                }
+            }
+        }
+    }
+}

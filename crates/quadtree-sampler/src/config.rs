@@ -1,0 +1,125 @@
+//! Build options (SPEC §3), with the seed's choices as defaults.
+
+use crate::error::BuildError;
+use alloc::format;
+use brdf_core::DiskMap;
+
+/// The per-node integration rule (applied in the node's chart coordinates, adaptively).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum IntegrationRule {
+    /// The seed's uniform midpoint grid with `n` × `n` points per application.
+    Midpoint {
+        /// Points per axis.
+        n: u8,
+    },
+    /// Gauss–Legendre with `n` × `n` points per application.
+    GaussLegendre {
+        /// Points per axis.
+        n: u8,
+    },
+}
+
+/// How a quadtree is built. `Default` is the seed's method with safe limits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BuildConfig {
+    /// Square ↔ hemisphere map. Default: the seed's orthographic `Codificador`.
+    pub map: DiskMap,
+    /// A node splits while its acceptance P = v1/(box volume) is below this. Default 0.5 (the
+    /// seed's rule; it guarantees at most 2 expected trials per sample).
+    pub split_threshold: f64,
+    /// The node integration rule. Default Gauss–Legendre 6 × 6.
+    pub rule: IntegrationRule,
+    /// Relative tolerance of each node's adaptive integral (with an absolute floor of 1e-2 of
+    /// it times the total volume). Default 1e-6: far below the statistical noise of 10⁸
+    /// samples in one leaf.
+    pub integration_tolerance: f64,
+    /// Extra levels of adaptive integration below a node. Default 8.
+    pub integration_depth: u8,
+    /// Maximum node depth (root = 0). Default 20.
+    pub max_depth: u8,
+    /// Maximum number of nodes. Default 2²⁰.
+    pub node_budget: u32,
+    /// Refine further, greedily by wasted volume, until the expected number of rejection
+    /// trials per sample is at most this (SPEC §3). Default `None`: the seed's rule, whose
+    /// bound E[T] ≤ 1/`split_threshold` is always enforced.
+    pub target_trials: Option<f64>,
+    /// Bounds are the largest value found (dense grid, peak hints, local search) times this.
+    /// Default 1.02.
+    pub bound_safety: f64,
+    /// Grid points per axis when bounding a node. Default 8 (81 points with the edges).
+    pub bound_grid: u8,
+    /// The breadth-first pass does not split a node whose wasted volume (box − v1) is below
+    /// this fraction of the total volume: without it, leaves on the disk's rim, whose P never
+    /// reaches ½, would split until the budget runs out (the seed's endless recursion).
+    /// E[T] ≤ 1/`split_threshold` is then restored by splitting the most wasteful leaves
+    /// first. Default 1e-3.
+    pub min_relative_waste: f64,
+    /// Evaluate the nodes of a level in parallel (feature `rayon`). The tree is bit-identical
+    /// either way. Default true.
+    pub parallel: bool,
+}
+
+impl Default for BuildConfig {
+    fn default() -> Self {
+        Self {
+            map: DiskMap::Orthographic,
+            split_threshold: 0.5,
+            rule: IntegrationRule::GaussLegendre { n: 6 },
+            integration_tolerance: 1e-6,
+            integration_depth: 8,
+            max_depth: 20,
+            node_budget: 1 << 20,
+            target_trials: None,
+            bound_safety: 1.02,
+            bound_grid: 8,
+            min_relative_waste: 1e-3,
+            parallel: true,
+        }
+    }
+}
+
+impl BuildConfig {
+    /// The default with a target mean number of trials (SPEC §3's target mode).
+    #[must_use]
+    pub fn with_target_trials(target: f64) -> Self {
+        Self { target_trials: Some(target), ..Self::default() }
+    }
+
+    /// Checks every option's range.
+    pub fn validate(&self) -> Result<(), BuildError> {
+        let bad = |message| Err(BuildError::Config { message });
+        if !(self.split_threshold > 0.0 && self.split_threshold <= 1.0) {
+            return bad(format!("split_threshold = {} must be in (0, 1]", self.split_threshold));
+        }
+        if !(self.integration_tolerance > 0.0 && self.integration_tolerance < 1.0) {
+            return bad(format!("integration_tolerance = {} must be in (0, 1)", self.integration_tolerance));
+        }
+        let n = match self.rule {
+            IntegrationRule::Midpoint { n } | IntegrationRule::GaussLegendre { n } => n,
+        };
+        if !(1..=64).contains(&n) {
+            return bad(format!("integration rule size {n} must be in [1, 64]"));
+        }
+        if self.max_depth > 30 {
+            return bad(format!("max_depth = {} must be at most 30", self.max_depth));
+        }
+        if self.node_budget < 1 {
+            return bad(format!("node_budget = {} must be at least 1", self.node_budget));
+        }
+        if let Some(t) = self.target_trials {
+            if !(t >= 1.0) {
+                return bad(format!("target_trials = {t} must be at least 1"));
+            }
+        }
+        if !(self.bound_safety >= 1.0 && self.bound_safety.is_finite()) {
+            return bad(format!("bound_safety = {} must be at least 1", self.bound_safety));
+        }
+        if !(2..=64).contains(&self.bound_grid) {
+            return bad(format!("bound_grid = {} must be in [2, 64]", self.bound_grid));
+        }
+        if !(self.min_relative_waste >= 0.0 && self.min_relative_waste < 1.0) {
+            return bad(format!("min_relative_waste = {} must be in [0, 1)", self.min_relative_waste));
+        }
+        Ok(())
+    }
+}

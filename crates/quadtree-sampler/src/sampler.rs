@@ -1,0 +1,324 @@
+//! Sampling (seed §2.2, §3, Fig. 3–5): region selection (`seleccionarRegion`), rejection in
+//! the leaf (`muestrear`), and the one interface every sampler of the project implements.
+
+use crate::chart::ChartPoint;
+use crate::config::BuildConfig;
+use crate::error::BuildError;
+use crate::tree::{Context, Quadtree, TreeStats, albedo_of_volume};
+use brdf_core::geometry::{above_horizon, luminance, unit_direction_above};
+use brdf_core::{Brdf, BrdfSample};
+use core::sync::atomic::{AtomicU64, Ordering};
+use glam::{DVec2, Vec2, Vec3};
+use rand_core::Rng;
+
+/// A uniform f64 in [0, 1) from 53 random bits.
+#[inline]
+pub fn uniform_f64<R: Rng + ?Sized>(rng: &mut R) -> f64 {
+    (rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}
+
+/// A uniform f32 in [0, 1) from 24 random bits.
+#[inline]
+pub fn uniform_f32<R: Rng + ?Sized>(rng: &mut R) -> f32 {
+    (rng.next_u32() >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
+}
+
+/// One sampled outgoing direction (local frame), as every sampler here returns it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    /// The direction, unit, z > 0.
+    pub wo: Vec3,
+    /// Density of `wo` **per unit solid angle** (for a delta sample: the probability with
+    /// which the delta lobe was chosen).
+    pub pdf: f32,
+    /// f_r(wi, wo), RGB, 1/sr (for a delta sample: reflectance / cos θo).
+    pub f: Vec3,
+    /// The estimator weight f·cos θo / pdf, RGB.
+    pub weight: Vec3,
+    /// Whether `wo` came from a Dirac delta lobe.
+    pub delta: bool,
+    /// Rejection trials spent on this sample (1 for samplers without rejection).
+    pub trials: u32,
+}
+
+impl From<BrdfSample> for Sample {
+    fn from(s: BrdfSample) -> Self {
+        Self { wo: s.wo, pdf: s.pdf, f: s.f, weight: s.weight, delta: s.delta, trials: 1 }
+    }
+}
+
+/// A sampler of outgoing directions for one fixed incident direction: the quadtree, the
+/// baselines, or a user's own. Pure function of the random numbers drawn from `rng`.
+pub trait DirectionSampler: Send + Sync {
+    /// A short name (`rejection`, `cosine`, ...).
+    fn name(&self) -> &'static str;
+
+    /// Draws one direction, or `None` when the drawn direction carries no contribution (below
+    /// the horizon, or the rejection loop gave up); an estimator then scores 0.
+    fn sample(&self, rng: &mut dyn Rng) -> Option<Sample>;
+
+    /// The density of [`DirectionSampler::sample`] at `wo` (local), **per unit solid angle**.
+    fn pdf(&self, wo: Vec3) -> f32;
+}
+
+/// The seed's sampler: a quadtree built once for `wi`, then any number of samples (`&self`,
+/// `Sync`). Rejection mode: the density is ∝ f_r·cos θ up to the leaf-integral error, and the
+/// reported pdf is f_r·cos θ·J/V (V the tree's volume, J the map's Jacobian).
+#[derive(Debug)]
+pub struct QuadtreeSampler<'a, B: Brdf + ?Sized> {
+    brdf: &'a B,
+    wi: Vec3,
+    config: BuildConfig,
+    tree: Quadtree,
+    /// J / V: pdf per unit solid angle = f · cos θ · this.
+    pdf_scale: f64,
+    violations: AtomicU64,
+    gave_up: AtomicU64,
+}
+
+/// The rejection loop gives up on one sample after this many trials (returns `None`).
+pub const MAX_TRIALS: u32 = 1 << 20;
+
+impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
+    /// Builds the quadtree of f_r(wi, ·) for a local `wi` (normalised here; it must be finite,
+    /// non-zero and above the horizon). Delta models are an error.
+    pub fn new(brdf: &'a B, wi: Vec3, config: BuildConfig) -> Result<Self, BuildError> {
+        let wi = unit_direction_above(wi)?;
+        let ctx = Context::new(brdf, wi, config);
+        let tree = Quadtree::build(&ctx)?;
+        let v = tree.volume();
+        let j = f64::from(config.map.square_area_per_projected_solid_angle());
+        Ok(Self {
+            brdf,
+            wi,
+            config,
+            tree,
+            pdf_scale: if v > 0.0 { j / v } else { 0.0 },
+            violations: AtomicU64::new(0),
+            gave_up: AtomicU64::new(0),
+        })
+    }
+
+    /// Multiplies every bound M by `factor`: a deliberately broken sampler for negative
+    /// controls (a validation harness must reject it for factor < 1). Not for production.
+    #[doc(hidden)]
+    pub fn scale_bounds_for_testing(&mut self, factor: f64) {
+        self.tree.scale_bounds(factor);
+    }
+
+    /// The tree.
+    #[must_use]
+    pub fn tree(&self) -> &Quadtree {
+        &self.tree
+    }
+
+    /// The build options used.
+    #[must_use]
+    pub fn config(&self) -> &BuildConfig {
+        &self.config
+    }
+
+    /// The incident direction (local, unit).
+    #[must_use]
+    pub fn wi(&self) -> Vec3 {
+        self.wi
+    }
+
+    /// The directional albedo of f_r's luminance, ρ(wi) = ∫ Y(f_r) cos θ dω = V/J (SPEC §2):
+    /// the constant weight of every sample in luminance.
+    #[must_use]
+    pub fn albedo(&self) -> f64 {
+        albedo_of_volume(self.config.map, self.tree.volume())
+    }
+
+    /// Tree counts and E[T].
+    #[must_use]
+    pub fn stats(&self) -> TreeStats {
+        self.tree.stats()
+    }
+
+    /// How many times sampling met f > M (a bound that was not one). Should stay 0.
+    #[must_use]
+    pub fn bound_violations(&self) -> u64 {
+        self.violations.load(Ordering::Relaxed)
+    }
+
+    /// How many samples hit [`MAX_TRIALS`] and returned `None`.
+    #[must_use]
+    pub fn gave_up(&self) -> u64 {
+        self.gave_up.load(Ordering::Relaxed)
+    }
+
+    /// `seleccionarRegion`: descends from the root, choosing child i with probability
+    /// v1_i / Σ v1, reusing one uniform `u` ∈ [0, 1) by rescaling. Returns a leaf with v1 > 0
+    /// (or the root when the tree is empty).
+    #[must_use]
+    pub fn select_region(&self, mut u: f64) -> usize {
+        let nodes = self.tree.nodes();
+        let mut i = 0;
+        while !nodes[i].is_leaf() {
+            let c = nodes[i].first_child as usize;
+            let total: f64 = (c..c + 4).map(|k| nodes[k].v1).sum();
+            let mut target = u * total;
+            let mut pick = None;
+            for k in c..c + 4 {
+                let v = nodes[k].v1;
+                if v > 0.0 {
+                    pick = Some(k);
+                    if target < v {
+                        u = (target / v).clamp(0.0, 1.0 - f64::EPSILON);
+                        break;
+                    }
+                    target -= v;
+                }
+            }
+            match pick {
+                Some(k) => i = k,
+                None => return i,
+            }
+        }
+        i
+    }
+
+    /// `muestrear`: rejection in leaf `leaf`: a point uniform in the leaf's proposal box, a
+    /// height uniform in [0, M); accept when the height is below f (times the chart's
+    /// Jacobian). Returns the accepted point and the number of trials.
+    pub fn sample_leaf<R: Rng + ?Sized>(&self, leaf: usize, rng: &mut R) -> Option<(ChartPoint, u32)> {
+        let node = &self.tree.nodes()[leaf];
+        let (prop, rect, m) = (node.proposal, node.rect(), node.bound);
+        if !(node.v1 > 0.0 && m > 0.0) {
+            return None;
+        }
+        let span = prop.hi - prop.lo;
+        for trial in 1..=MAX_TRIALS {
+            let q = prop.lo + span * DVec2::new(uniform_f64(rng), uniform_f64(rng));
+            let z = m * uniform_f64(rng);
+            let Some(c) = prop.point(self.config.map, &rect, q) else { continue };
+            let h = f64::from(self.brdf.eval_luminance(self.wi, c.w.as_vec3())) * c.jacobian;
+            if h > m {
+                self.violations.fetch_add(1, Ordering::Relaxed);
+            }
+            if z < h {
+                return Some((c, trial));
+            }
+        }
+        self.gave_up.fetch_add(1, Ordering::Relaxed);
+        None
+    }
+
+    /// Draws one direction: select a region, then rejection-sample it.
+    pub fn sample<R: Rng + ?Sized>(&self, rng: &mut R) -> Option<Sample> {
+        let leaf = self.select_region(uniform_f64(rng));
+        let (c, trials) = self.sample_leaf(leaf, rng)?;
+        let wo = c.w.as_vec3().normalize();
+        let f = self.brdf.eval(self.wi, wo);
+        let pdf = self.pdf(wo);
+        if !(pdf > 0.0 && wo.z > 0.0) {
+            return None;
+        }
+        Some(Sample { wo, pdf, f, weight: f * (wo.z / pdf), delta: false, trials })
+    }
+
+    /// The density per unit solid angle that [`QuadtreeSampler::sample`] reports for `wo`:
+    /// Y(f_r)·cos θ·J/V.
+    #[must_use]
+    pub fn pdf(&self, wo: Vec3) -> f32 {
+        if !above_horizon(wo) {
+            return 0.0;
+        }
+        (f64::from(self.brdf.eval_luminance(self.wi, wo)) * f64::from(wo.z) * self.pdf_scale) as f32
+    }
+}
+
+impl<B: Brdf + ?Sized> DirectionSampler for QuadtreeSampler<'_, B> {
+    fn name(&self) -> &'static str {
+        "rejection"
+    }
+
+    fn sample(&self, rng: &mut dyn Rng) -> Option<Sample> {
+        QuadtreeSampler::sample(self, rng)
+    }
+
+    fn pdf(&self, wo: Vec3) -> f32 {
+        QuadtreeSampler::pdf(self, wo)
+    }
+}
+
+/// Which baseline: what a renderer would use instead of the quadtree.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Baseline {
+    /// Uniform on the hemisphere, pdf 1/(2π).
+    Uniform,
+    /// Cosine-weighted, pdf cos θ/π.
+    Cosine,
+    /// The model's own sampler (`Brdf::sample`; cosine for models without one).
+    Analytic,
+}
+
+/// A baseline sampler for one incident direction.
+#[derive(Clone, Copy, Debug)]
+pub struct BaselineSampler<'a, B: Brdf + ?Sized> {
+    brdf: &'a B,
+    wi: Vec3,
+    kind: Baseline,
+}
+
+impl<'a, B: Brdf + ?Sized> BaselineSampler<'a, B> {
+    /// A baseline for local `wi` (normalised; it must be above the horizon).
+    pub fn new(brdf: &'a B, wi: Vec3, kind: Baseline) -> Result<Self, BuildError> {
+        Ok(Self { brdf, wi: unit_direction_above(wi)?, kind })
+    }
+
+    /// Draws one direction with generic RNG.
+    pub fn sample<R: Rng + ?Sized>(&self, rng: &mut R) -> Option<Sample> {
+        let uc = uniform_f32(rng);
+        let u = Vec2::new(uniform_f32(rng), uniform_f32(rng));
+        match self.kind {
+            Baseline::Analytic => self.brdf.sample(self.wi, uc, u).map(Sample::from),
+            Baseline::Uniform | Baseline::Cosine => {
+                let wo = match self.kind {
+                    Baseline::Uniform => brdf_core::warp::sample_uniform_hemisphere(u),
+                    _ => brdf_core::warp::sample_cosine_hemisphere(u),
+                };
+                BrdfSample::continuous(wo, self.brdf.eval(self.wi, wo), self.pdf(wo)).map(Sample::from)
+            }
+        }
+    }
+
+    /// Density per unit solid angle.
+    #[must_use]
+    pub fn pdf(&self, wo: Vec3) -> f32 {
+        if !above_horizon(wo) {
+            return 0.0;
+        }
+        match self.kind {
+            Baseline::Uniform => brdf_core::warp::uniform_hemisphere_pdf(),
+            Baseline::Cosine => brdf_core::warp::cosine_hemisphere_pdf(wo.z),
+            Baseline::Analytic => self.brdf.pdf(self.wi, wo),
+        }
+    }
+}
+
+impl<B: Brdf + ?Sized> DirectionSampler for BaselineSampler<'_, B> {
+    fn name(&self) -> &'static str {
+        match self.kind {
+            Baseline::Uniform => "uniform",
+            Baseline::Cosine => "cosine",
+            Baseline::Analytic => "analytic",
+        }
+    }
+
+    fn sample(&self, rng: &mut dyn Rng) -> Option<Sample> {
+        BaselineSampler::sample(self, rng)
+    }
+
+    fn pdf(&self, wo: Vec3) -> f32 {
+        BaselineSampler::pdf(self, wo)
+    }
+}
+
+/// Luminance of a sample's weight (for mean-weight estimates).
+#[must_use]
+pub fn weight_luminance(s: &Sample) -> f64 {
+    f64::from(luminance(s.weight))
+}

@@ -1,0 +1,541 @@
+//! The arena quadtree (seed §2.1, Fig. 1–2): nodes, the split (`particionar`) and the
+//! target-trials refinement.
+
+use crate::chart::{Chart, Proposal, Rect, UnitRule, integrate_adaptive};
+use crate::config::{BuildConfig, IntegrationRule};
+use crate::error::BuildError;
+use alloc::collections::BinaryHeap;
+use alloc::vec::Vec;
+use brdf_core::{Brdf, DiskMap, math as m};
+use core::cmp::Ordering;
+use glam::{DVec2, DVec3, Vec3};
+
+/// No child: the node is a leaf.
+pub const LEAF: u32 = 0;
+
+/// One node of the arena: the seed's `Nodo` with its `Region`.
+///
+/// The square is [x, x+s) × [y, y+s) of the seed's domain; `v1` = ∫ f_r over it (square
+/// measure), `bound` (M) an upper bound of the proposal's height function over the proposal
+/// box, and P = v1 / (box area · M). Children are four contiguous nodes from `first_child`,
+/// in the order (−,−), (+,−), (−,+), (+,+).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Node {
+    /// Lower-left corner u.
+    pub x: f32,
+    /// Lower-left corner v.
+    pub y: f32,
+    /// Side s.
+    pub size: f32,
+    /// Depth (root = 0).
+    pub depth: u8,
+    /// Index of the first of four children, or [`LEAF`].
+    pub first_child: u32,
+    /// v1: ∫ f_r over the square (f64). For an inner node, the sum of its children's.
+    pub v1: f64,
+    /// M: the height bound of the rejection test in this node's proposal chart.
+    pub bound: f64,
+    /// The rejection proposal of this node (used when it is a leaf).
+    pub proposal: Proposal,
+}
+
+impl Node {
+    /// The node's square in f64.
+    #[must_use]
+    pub fn rect(&self) -> Rect {
+        Rect::square(f64::from(self.x), f64::from(self.y), f64::from(self.size))
+    }
+
+    /// Whether the node has no children.
+    #[must_use]
+    pub fn is_leaf(&self) -> bool {
+        self.first_child == LEAF
+    }
+
+    /// The volume of the rejection box: proposal area × M (s²·M for the seed's square chart).
+    #[must_use]
+    pub fn box_volume(&self) -> f64 {
+        self.proposal.area() * self.bound
+    }
+
+    /// The wasted volume that splitting can remove: box/safety − v1 (the safety factor's
+    /// share of the box is the same in every child).
+    #[must_use]
+    pub fn reducible_waste(&self, safety: f64) -> f64 {
+        self.box_volume() / safety - self.v1
+    }
+
+    /// The seed's P = v1 / (box volume): the acceptance probability of rejection in this node.
+    #[must_use]
+    pub fn acceptance(&self) -> f64 {
+        let b = self.box_volume();
+        if b > 0.0 { self.v1 / b } else { 0.0 }
+    }
+}
+
+/// What [`Context::rim_probe`] found: f's behaviour approaching the rim inside a node.
+#[derive(Clone, Copy, Debug)]
+enum RimProbe {
+    /// f grows without bound toward the rim (1/√z or faster).
+    Unbounded,
+    /// f stays bounded; the largest value seen near the rim.
+    Bounded(f64),
+}
+
+/// What a node's evaluation found.
+#[derive(Clone, Copy, Debug)]
+struct Evaluation {
+    v1: f64,
+    bound: f64,
+    proposal: Proposal,
+}
+
+/// Everything a node evaluation needs: pure, shared by the worker threads.
+pub(crate) struct Context<'a, B: Brdf + ?Sized> {
+    pub brdf: &'a B,
+    pub wi: Vec3,
+    pub config: BuildConfig,
+    rule: UnitRule,
+    hints: Vec<DVec3>,
+    /// Absolute floor of every node's integration tolerance: the relative tolerance times an
+    /// estimate of the total volume (a node's error below it cannot be seen by any test).
+    tol_floor: f64,
+}
+
+impl<'a, B: Brdf + ?Sized> Context<'a, B> {
+    pub(crate) fn new(brdf: &'a B, wi: Vec3, config: BuildConfig) -> Self {
+        let rule = match config.rule {
+            IntegrationRule::Midpoint { n } => UnitRule::midpoint(usize::from(n)),
+            IntegrationRule::GaussLegendre { n } => UnitRule::new(usize::from(n)),
+        };
+        let hints = brdf.peak_hints(wi).as_slice().iter().map(|h| h.as_dvec3().normalize()).collect();
+        let mut ctx = Self { brdf, wi, config, rule, hints, tol_floor: 0.0 };
+        let root = Rect::square(-1.0, -1.0, 2.0);
+        let f = |w: DVec3| ctx.f(w);
+        let coarse = crate::chart::integrate_once(config.map, &root, &ctx.rule, &f);
+        let estimate = integrate_adaptive(config.map, &root, &ctx.rule, 1e-3 * coarse.abs(), 6, &f);
+        ctx.tol_floor = config.integration_tolerance * 1e-2 * estimate.abs();
+        ctx
+    }
+
+    /// f_r's luminance at a local direction (the density the tree follows).
+    #[inline]
+    pub(crate) fn f(&self, w: DVec3) -> f64 {
+        f64::from(self.brdf.eval_luminance(self.wi, w.as_vec3()))
+    }
+
+    /// The proposal's height function h = f·Jacobian at chart point q (0 outside the node).
+    #[inline]
+    fn height(&self, prop: &Proposal, rect: &Rect, q: DVec2) -> f64 {
+        prop.point(self.config.map, rect, q).map_or(0.0, |c| self.f(c.w) * c.jacobian)
+    }
+
+    fn evaluate(&self, rect: &Rect) -> Evaluation {
+        let map = self.config.map;
+        let mut prop = Proposal::for_node(map, rect);
+        // The angle chart is needed only where f is unbounded at the rim; elsewhere the seed's
+        // square proposal is tighter (its only waste, outside the disk, shrinks as it splits).
+        let rim_peak = if prop.chart == Chart::Angle { self.rim_probe(rect) } else { None };
+        if let Some(RimProbe::Bounded(_)) = rim_peak {
+            prop = Proposal { chart: Chart::Square, lo: rect.min, hi: rect.max };
+        }
+        if map == DiskMap::Orthographic && rect.radius_range().0 >= 1.0 {
+            return Evaluation { v1: 0.0, bound: 0.0, proposal: prop };
+        }
+        let f = |w: DVec3| self.f(w);
+        let coarse = crate::chart::integrate_once(map, rect, &self.rule, &f);
+        let tol = (self.config.integration_tolerance * coarse.abs()).max(self.tol_floor);
+        let v1 = integrate_adaptive(map, rect, &self.rule, tol, u32::from(self.config.integration_depth), &f).max(0.0);
+        // A bound below the node's mean height is certainly wrong (a peak between the points
+        // looked at): take four times the mean instead, so that P = ¼ splits the node.
+        let mean = if prop.area() > 0.0 { v1 / prop.area() } else { 0.0 };
+        let mut found = self.bound(&prop, rect);
+        if let Some(RimProbe::Bounded(limit)) = rim_peak {
+            found = found.max(limit * self.config.bound_safety);
+        }
+        let bound = if found >= mean * self.config.bound_safety { found } else { 4.0 * mean };
+        Evaluation { v1, bound, proposal: prop }
+    }
+
+    /// M: the largest h found on a dense grid (edges and corners included), at the peak hints
+    /// inside the node, and by a compass search from the best of those, times the safety
+    /// factor (SPEC §3).
+    fn bound(&self, prop: &Proposal, rect: &Rect) -> f64 {
+        let map = self.config.map;
+        let g = usize::from(self.config.bound_grid);
+        let (lo, hi) = (prop.lo, prop.hi);
+        let span = hi - lo;
+        let mut best = [(f64::NEG_INFINITY, lo); 3];
+        let mut consider = |h: f64, q: DVec2| {
+            if h > best[2].0 {
+                best[2] = (h, q);
+                best.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+            }
+        };
+        // The grid follows the node's own region: in the angle chart, t runs between the
+        // node's edges at each a (a sliver of the box may hold all of the node).
+        for i in 0..=g {
+            let a = lo.x + span.x * i as f64 / g as f64;
+            let (t0, t1) = match prop.chart {
+                Chart::Angle => {
+                    let ca = m::cos(a);
+                    if ca <= 0.0 {
+                        continue;
+                    }
+                    let lim = |y: f64| m::asin((y / ca).clamp(-1.0, 1.0));
+                    (lim(rect.min.y), lim(rect.max.y).min(hi.y))
+                }
+                Chart::Square | Chart::Sine => (lo.y, hi.y),
+            };
+            for j in 0..=g {
+                // Pull the upper ends in by a hair: the node's upper edges are open.
+                let t = t0 + (t1 - t0) * (j as f64 / g as f64).min(1.0 - 1e-12);
+                let q = DVec2::new(a, t);
+                consider(self.height(prop, rect, q), q);
+            }
+        }
+        for w in &self.hints {
+            let p = match map {
+                DiskMap::Orthographic => DVec2::new(w.x, w.y),
+                DiskMap::Concentric => brdf_core::maps::disk_to_square_concentric(w.truncate().as_vec2()).as_dvec2(),
+            };
+            if rect.contains(p) {
+                let q = prop.coordinates(map, *w).clamp(lo, hi);
+                consider(self.height(prop, rect, q), q);
+            }
+        }
+        let mut max = best[0].0.max(0.0);
+        for &(h0, q0) in &best {
+            if h0 > 0.0 {
+                max = max.max(self.compass_search(prop, rect, q0, h0, span / g as f64));
+            }
+        }
+        max * self.config.bound_safety
+    }
+
+    /// Looks at f along the part of the rim inside the node, at heights z = 1e-6 and 1e-10
+    /// above it. If f still grows between them (Ward's 1/√z grows 100-fold) it is unbounded
+    /// there; otherwise the largest value seen is its limit at the rim.
+    fn rim_probe(&self, rect: &Rect) -> Option<RimProbe> {
+        const K: usize = 64;
+        let mut limit: f64 = 0.0;
+        let mut any = false;
+        for k in 0..K {
+            let phi = core::f64::consts::TAU * (k as f64 + 0.5) / K as f64;
+            let (c, s) = (m::cos(phi), m::sin(phi));
+            if !rect.contains(DVec2::new(c, s)) {
+                continue;
+            }
+            any = true;
+            let at = |z: f64| {
+                let r = m::sqrt((1.0 - z) * (1.0 + z));
+                self.f(DVec3::new(r * c, r * s, z))
+            };
+            let (near, nearer) = (at(1e-6), at(1e-10));
+            if nearer > 1.5 * near && nearer > 0.0 {
+                return Some(RimProbe::Unbounded);
+            }
+            limit = limit.max(near).max(nearer);
+        }
+        // A node that only grazes the rim between probe angles: test its corner on the rim side.
+        if !any {
+            let far = DVec2::new(
+                if rect.max.x.abs() > rect.min.x.abs() { rect.max.x } else { rect.min.x },
+                if rect.max.y.abs() > rect.min.y.abs() { rect.max.y } else { rect.min.y },
+            );
+            let d = far.normalize_or_zero();
+            let at = |z: f64| {
+                let r = m::sqrt((1.0 - z) * (1.0 + z));
+                self.f(DVec3::new(r * d.x, r * d.y, z))
+            };
+            let (near, nearer) = (at(1e-6), at(1e-10));
+            if nearer > 1.5 * near && nearer > 0.0 {
+                return Some(RimProbe::Unbounded);
+            }
+            limit = near.max(nearer);
+        }
+        Some(RimProbe::Bounded(limit))
+    }
+
+    /// Hill-climbs h from q0 with axis steps, halving them when no step improves.
+    fn compass_search(&self, prop: &Proposal, rect: &Rect, q0: DVec2, h0: f64, step0: DVec2) -> f64 {
+        let (mut q, mut h, mut step) = (q0, h0, step0);
+        let stop = step0 * 1e-4;
+        let mut evals = 0;
+        while (step.x > stop.x || step.y > stop.y) && evals < 400 {
+            let mut moved = false;
+            for d in [DVec2::new(step.x, 0.0), DVec2::new(-step.x, 0.0), DVec2::new(0.0, step.y), DVec2::new(0.0, -step.y)] {
+                let c = (q + d).clamp(prop.lo, prop.hi);
+                let hc = self.height(prop, rect, c);
+                evals += 1;
+                if hc > h {
+                    (q, h, moved) = (c, hc, true);
+                    break;
+                }
+            }
+            if !moved {
+                step *= 0.5;
+            }
+        }
+        h
+    }
+
+    fn evaluate_all(&self, rects: &[Rect]) -> Vec<Evaluation> {
+        #[cfg(feature = "rayon")]
+        if self.config.parallel {
+            use rayon::prelude::*;
+            return rects.par_iter().map(|r| self.evaluate(r)).collect();
+        }
+        rects.iter().map(|r| self.evaluate(r)).collect()
+    }
+}
+
+/// Counts that describe a built tree.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TreeStats {
+    /// Number of nodes.
+    pub nodes: usize,
+    /// Number of leaves.
+    pub leaves: usize,
+    /// Leaves with v1 > 0 (the ones that can be chosen).
+    pub live_leaves: usize,
+    /// Deepest leaf.
+    pub max_depth: u8,
+    /// Leaves per depth.
+    pub depth_histogram: Vec<usize>,
+    /// Bytes of the node arena.
+    pub bytes: usize,
+    /// E[T] = Σ box volumes / Σ v1 over live leaves: expected rejection trials per sample.
+    pub expected_trials: f64,
+    /// Whether the node budget stopped a split.
+    pub budget_exhausted: bool,
+}
+
+/// The seed's `Quadtree` over the square for one incident direction: an arena of nodes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Quadtree {
+    nodes: Vec<Node>,
+    map: DiskMap,
+    budget_exhausted: bool,
+}
+
+impl Quadtree {
+    /// Builds the tree of f_r(wi, ·) (`wi` local, above the horizon), splitting every node
+    /// whose P is below the threshold (`particionar`), then, in target mode, refining the
+    /// leaves with the largest wasted volume until E[T] ≤ target.
+    pub(crate) fn build<B: Brdf + ?Sized>(ctx: &Context<'_, B>) -> Result<Self, BuildError> {
+        ctx.config.validate()?;
+        if ctx.brdf.is_delta() {
+            return Err(BuildError::DeltaModel { model: ctx.brdf.name() });
+        }
+        let cfg = &ctx.config;
+        let budget = cfg.node_budget as usize;
+        let root_rect = Rect::square(-1.0, -1.0, 2.0);
+        let e = ctx.evaluate(&root_rect);
+        let mut tree = Self {
+            nodes: alloc::vec![Node { x: -1.0, y: -1.0, size: 2.0, depth: 0, first_child: LEAF, v1: e.v1, bound: e.bound, proposal: e.proposal }],
+            map: cfg.map,
+            budget_exhausted: false,
+        };
+        // Breadth-first: decide a level's splits serially (in index order), evaluate the new
+        // children together (in parallel when enabled). Same tree either way.
+        let mut frontier: Vec<u32> = alloc::vec![0];
+        let mut total = e.v1;
+        while !frontier.is_empty() {
+            let mut split = Vec::new();
+            for &i in &frontier {
+                let n = &tree.nodes[i as usize];
+                let wants = n.depth < cfg.max_depth
+                    && n.v1 > 0.0
+                    && n.acceptance() < cfg.split_threshold
+                    && n.reducible_waste(cfg.bound_safety) > cfg.min_relative_waste * total;
+                if wants {
+                    if tree.nodes.len() + 4 * (split.len() + 1) > budget {
+                        tree.budget_exhausted = true;
+                        break;
+                    }
+                    split.push(i);
+                }
+            }
+            let before: f64 = split.iter().map(|&i| tree.nodes[i as usize].v1).sum();
+            frontier = tree.split(ctx, &split);
+            let after: f64 = frontier.iter().map(|&i| tree.nodes[i as usize].v1).sum();
+            total += after - before;
+        }
+        // The seed's rule promises E[T] ≤ 1/threshold; the waste cut-off above can leave rim
+        // leaves with P < threshold, so enforce the promise (and any stricter target).
+        let target = cfg.target_trials.map_or(1.0 / cfg.split_threshold, |t| t.min(1.0 / cfg.split_threshold));
+        tree.refine_to_target(ctx, target);
+        tree.sum_up();
+        Ok(tree)
+    }
+
+    /// Splits the given leaves into four children each, evaluates the children, and returns
+    /// their indices.
+    fn split<B: Brdf + ?Sized>(&mut self, ctx: &Context<'_, B>, parents: &[u32]) -> Vec<u32> {
+        let mut rects = Vec::with_capacity(4 * parents.len());
+        let first_new = self.nodes.len() as u32;
+        for (k, &p) in parents.iter().enumerate() {
+            let n = self.nodes[p as usize];
+            self.nodes[p as usize].first_child = first_new + 4 * k as u32;
+            let h = 0.5 * n.size;
+            for (dx, dy) in [(0.0, 0.0), (h, 0.0), (0.0, h), (h, h)] {
+                let (x, y) = (n.x + dx, n.y + dy);
+                rects.push((Rect::square(f64::from(x), f64::from(y), f64::from(h)), x, y, h, n.depth + 1));
+            }
+        }
+        let evals = ctx.evaluate_all(&rects.iter().map(|r| r.0).collect::<Vec<_>>());
+        for ((_, x, y, s, depth), e) in rects.into_iter().zip(evals) {
+            self.nodes.push(Node { x, y, size: s, depth, first_child: LEAF, v1: e.v1, bound: e.bound, proposal: e.proposal });
+        }
+        (first_new..self.nodes.len() as u32).collect()
+    }
+
+    /// SPEC §3's target mode: split, in batches, the live leaves with the largest reducible
+    /// wasted volume (box/safety − v1: the safety factor's share cannot be split away) until E[T] ≤ target, the budget is spent, or no leaf can split.
+    fn refine_to_target<B: Brdf + ?Sized>(&mut self, ctx: &Context<'_, B>, target: f64) {
+        #[derive(PartialEq)]
+        struct Waste(f64, u32);
+        impl Eq for Waste {}
+        impl PartialOrd for Waste {
+            fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+                Some(self.cmp(o))
+            }
+        }
+        impl Ord for Waste {
+            // Largest waste first; ties by lower index, so the order is total and fixed.
+            fn cmp(&self, o: &Self) -> Ordering {
+                self.0.total_cmp(&o.0).then(o.1.cmp(&self.1))
+            }
+        }
+        const BATCH: usize = 16;
+        let cfg = ctx.config;
+        let (mut boxes, mut v1s) = (0.0, 0.0);
+        let mut heap = BinaryHeap::new();
+        for (i, n) in self.nodes.iter().enumerate() {
+            if n.is_leaf() && n.v1 > 0.0 {
+                boxes += n.box_volume();
+                v1s += n.v1;
+                if n.depth < cfg.max_depth && n.reducible_waste(cfg.bound_safety) > 0.0 {
+                    heap.push(Waste(n.reducible_waste(cfg.bound_safety), i as u32));
+                }
+            }
+        }
+        while v1s > 0.0 && boxes / v1s > target {
+            let mut batch = Vec::with_capacity(BATCH);
+            while batch.len() < BATCH {
+                match heap.pop() {
+                    Some(Waste(_, i)) => batch.push(i),
+                    None => break,
+                }
+            }
+            if batch.is_empty() {
+                break;
+            }
+            if self.nodes.len() + 4 * batch.len() > cfg.node_budget as usize {
+                self.budget_exhausted = true;
+                break;
+            }
+            for &i in &batch {
+                let n = &self.nodes[i as usize];
+                boxes -= n.box_volume();
+                v1s -= n.v1;
+            }
+            for c in self.split(ctx, &batch) {
+                let n = &self.nodes[c as usize];
+                if n.v1 > 0.0 {
+                    boxes += n.box_volume();
+                    v1s += n.v1;
+                    if n.depth < cfg.max_depth && n.reducible_waste(cfg.bound_safety) > 0.0 {
+                        heap.push(Waste(n.reducible_waste(cfg.bound_safety), c));
+                    }
+                }
+            }
+        }
+    }
+
+    /// Sets every inner node's v1 to the sum of its children's (children follow parents).
+    fn sum_up(&mut self) {
+        for i in (0..self.nodes.len()).rev() {
+            let c = self.nodes[i].first_child as usize;
+            if c != LEAF as usize {
+                self.nodes[i].v1 = (c..c + 4).map(|k| self.nodes[k].v1).sum();
+            }
+        }
+    }
+
+    pub(crate) fn scale_bounds(&mut self, factor: f64) {
+        for n in &mut self.nodes {
+            n.bound *= factor;
+        }
+    }
+
+    /// The arena, root first.
+    #[must_use]
+    pub fn nodes(&self) -> &[Node] {
+        &self.nodes
+    }
+
+    /// The map the tree was built over.
+    #[must_use]
+    pub fn map(&self) -> DiskMap {
+        self.map
+    }
+
+    /// The total volume V = Σ leaf v1 = ∫ f_r over the square (the root's v1).
+    #[must_use]
+    pub fn volume(&self) -> f64 {
+        self.nodes[0].v1
+    }
+
+    /// Iterator over the leaves (index, node).
+    pub fn leaves(&self) -> impl Iterator<Item = (usize, &Node)> + '_ {
+        self.nodes.iter().enumerate().filter(|(_, n)| n.is_leaf())
+    }
+
+    /// The leaf whose square contains the square point `p` (ties to the upper child).
+    #[must_use]
+    pub fn leaf_at(&self, p: DVec2) -> usize {
+        let mut i = 0;
+        loop {
+            let n = &self.nodes[i];
+            if n.is_leaf() {
+                return i;
+            }
+            let c = n.first_child as usize;
+            let half = f64::from(n.x) + 0.5 * f64::from(n.size);
+            let halfy = f64::from(n.y) + 0.5 * f64::from(n.size);
+            i = c + usize::from(p.x >= half) + 2 * usize::from(p.y >= halfy);
+        }
+    }
+
+    /// Counts: nodes, leaves, depths, bytes, E[T].
+    #[must_use]
+    pub fn stats(&self) -> TreeStats {
+        let mut s = TreeStats { nodes: self.nodes.len(), bytes: self.nodes.len() * core::mem::size_of::<Node>(), budget_exhausted: self.budget_exhausted, ..TreeStats::default() };
+        let (mut boxes, mut v1s) = (0.0, 0.0);
+        for (_, n) in self.leaves() {
+            s.leaves += 1;
+            s.max_depth = s.max_depth.max(n.depth);
+            let d = usize::from(n.depth);
+            if s.depth_histogram.len() <= d {
+                s.depth_histogram.resize(d + 1, 0);
+            }
+            s.depth_histogram[d] += 1;
+            if n.v1 > 0.0 {
+                s.live_leaves += 1;
+                boxes += n.box_volume();
+                v1s += n.v1;
+            }
+        }
+        s.expected_trials = if v1s > 0.0 { boxes / v1s } else { 0.0 };
+        s
+    }
+}
+
+/// The square-measure density constant: f·cos/pdf = V / J, with J the map's square area per
+/// unit projected solid angle.
+#[must_use]
+pub fn albedo_of_volume(map: DiskMap, volume: f64) -> f64 {
+    volume / f64::from(map.square_area_per_projected_solid_angle())
+}
