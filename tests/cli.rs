@@ -272,3 +272,186 @@ fn eval_streams_normalises_and_zeroes_below_the_horizon() {
     assert_eq!(lines[0], lines[1], "directions are normalised");
     assert_eq!(lines[2], "0.0 0.0 0.0");
 }
+
+fn read_records(path: &std::path::Path) -> Vec<[f32; 4]> {
+    let bytes = std::fs::read(path).unwrap();
+    assert_eq!(bytes.len() % 16, 0);
+    bytes
+        .chunks_exact(16)
+        .map(|c| {
+            std::array::from_fn(|k| f32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap()))
+        })
+        .collect()
+}
+
+#[test]
+fn sample_writes_records_whose_pdf_brdf_pdf_agrees_with() {
+    let dir = std::env::temp_dir().join(format!("brdf-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for mode in ["rejection", "uniform", "cosine", "analytic"] {
+        let out = dir.join(format!("{mode}.bin"));
+        let args = [
+            "sample",
+            "--model",
+            "phong",
+            "--param",
+            "n=100",
+            "--wi",
+            "0.3,-0.2,0.9",
+            "--count",
+            "5000",
+            "--seed",
+            "5",
+            "--mode",
+            mode,
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        let o = brdf(&args, "");
+        assert!(
+            o.status.success(),
+            "{mode}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let summary: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        for key in [
+            "albedo",
+            "nodes",
+            "leaves",
+            "max_depth",
+            "build_seconds",
+            "sample_seconds",
+            "mean_trials",
+            "bound_violations",
+        ] {
+            assert!(
+                summary.get(key).is_some(),
+                "{mode}: summary lacks {key}: {summary}"
+            );
+        }
+        let recs = read_records(&out);
+        assert_eq!(recs.len(), 5000);
+        // Same seed, same records.
+        let again = brdf(&args, "");
+        assert!(again.status.success());
+        assert_eq!(
+            read_records(&out),
+            recs,
+            "{mode}: not reproducible from its seed"
+        );
+        // `brdf pdf` reports the pdf each record carries.
+        let kept: Vec<&[f32; 4]> = recs.iter().filter(|r| r[3] > 0.0).take(300).collect();
+        assert!(kept.len() >= 250, "{mode}: too many lost samples");
+        let input: String = kept
+            .iter()
+            .map(|r| format!("{} {} {}\n", r[0], r[1], r[2]))
+            .collect();
+        let p = brdf(
+            &[
+                "pdf",
+                "--model",
+                "phong",
+                "--param",
+                "n=100",
+                "--wi",
+                "0.3,-0.2,0.9",
+                "--mode",
+                mode,
+            ],
+            &input,
+        );
+        assert!(p.status.success(), "{}", String::from_utf8_lossy(&p.stderr));
+        for (r, line) in kept.iter().zip(stdout(&p).lines()) {
+            let got: f32 = line.parse().unwrap();
+            assert!(
+                (got - r[3]).abs() <= 1e-5 * r[3],
+                "{mode}: pdf {got} vs record {}",
+                r[3]
+            );
+        }
+        if mode == "rejection" {
+            assert_eq!(summary["bound_violations"], 0);
+            assert!(summary["nodes"].as_u64().unwrap() > 1);
+        } else {
+            assert!(summary["nodes"].is_null());
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn sample_and_pdf_reject_bad_input_with_status_2() {
+    let out = std::env::temp_dir().join(format!("brdf-cli-bad-{}.bin", std::process::id()));
+    let o = out.to_str().unwrap();
+    for (args, stdin, needle) in [
+        (
+            vec![
+                "sample", "--model", "mirror", "--wi", "0,0,1", "--count", "3", "--out", o,
+            ],
+            "",
+            "Dirac delta",
+        ),
+        (
+            vec![
+                "sample", "--model", "phong", "--wi", "0,0,-1", "--count", "3", "--out", o,
+            ],
+            "",
+            "below the horizon",
+        ),
+        (
+            vec![
+                "sample", "--model", "phong", "--wi", "0,0", "--count", "3", "--out", o,
+            ],
+            "",
+            "x,y,z",
+        ),
+        (
+            vec![
+                "sample", "--model", "phong", "--wi", "0,0,0", "--count", "3", "--out", o,
+            ],
+            "",
+            "zero length",
+        ),
+        (
+            vec![
+                "sample", "--model", "phong", "--wi", "0,0,1", "--count", "3", "--mode", "warp",
+                "--out", o,
+            ],
+            "",
+            "warp",
+        ),
+        (
+            vec![
+                "sample",
+                "--model",
+                "phong",
+                "--wi",
+                "0,0,1",
+                "--count",
+                "3",
+                "--target-trials",
+                "0.5",
+                "--out",
+                o,
+            ],
+            "",
+            "target_trials",
+        ),
+        (
+            vec!["pdf", "--model", "phong", "--wi", "0,0,1"],
+            "0 0\n",
+            "line 1",
+        ),
+        (
+            vec!["pdf", "--model", "phong", "--wi", "0,0,1"],
+            "0 0 0\n",
+            "zero length",
+        ),
+    ] {
+        let r = brdf(&args, stdin);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err:?} lacks {needle:?}");
+    }
+    std::fs::remove_file(&out).ok();
+}

@@ -13,10 +13,23 @@ fn main() {
     let theta: f32 = args.get(1).map_or(45.0, |s| s.parse().unwrap());
     let b = registry::create(name, params.iter().copied()).unwrap();
     let wi = Vec3::new(theta.to_radians().sin(), 0.0, theta.to_radians().cos());
+    let q = brdf_core::geometry::luminance(
+        brdf_core::quadrature::directional_albedo(&*b, wi, 200, 8).as_vec3(),
+    );
+    println!("quadrature albedo {q:.5}");
     for map in [DiskMap::Orthographic, DiskMap::Concentric] {
         for target in [None, Some(1.25)] {
             let t0 = Instant::now();
-            let s = QuadtreeSampler::new(&*b, wi, BuildConfig { map, target_trials: target, ..BuildConfig::default() }).unwrap();
+            let s = QuadtreeSampler::new(
+                &*b,
+                wi,
+                BuildConfig {
+                    map,
+                    target_trials: target,
+                    ..BuildConfig::default()
+                },
+            )
+            .unwrap();
             let build = t0.elapsed().as_secs_f64();
             let st = s.stats();
             let mut rng = Pcg64::seed_from_u64(1);
@@ -32,7 +45,16 @@ fn main() {
             let samp = t0.elapsed().as_secs_f64();
             println!(
                 "{map:?} target {target:?}: nodes {} leaves {} depth {} E[T] {:.3} albedo {:.5} build {:.3}s | {:.2} Msamples/s, mean trials {:.3}, none {none}, violations {}, gave up {}",
-                st.nodes, st.leaves, st.max_depth, st.expected_trials, s.albedo(), build, n as f64 / samp / 1e6, trials as f64 / n as f64, s.bound_violations(), s.gave_up()
+                st.nodes,
+                st.leaves,
+                st.max_depth,
+                st.expected_trials,
+                s.albedo(),
+                build,
+                n as f64 / samp / 1e6,
+                trials as f64 / n as f64,
+                s.bound_violations(),
+                s.gave_up()
             );
         }
     }

@@ -19,8 +19,8 @@
 //! Sampling uses the seed's uniform (x, y) proposal in every leaf that stays off the rim
 //! ([`Chart::Square`]), and the bounded angle or sine proposal in leaves that touch it.
 
-use brdf_core::math as m;
 use brdf_core::DiskMap;
+use brdf_core::math as m;
 use brdf_core::quadrature::GaussLegendre;
 use core::f64::consts::{FRAC_PI_2, FRAC_PI_4};
 use glam::{DVec2, DVec3};
@@ -38,7 +38,10 @@ impl Rect {
     /// The square [x, x+s) × [y, y+s).
     #[must_use]
     pub fn square(x: f64, y: f64, s: f64) -> Self {
-        Self { min: DVec2::new(x, y), max: DVec2::new(x + s, y + s) }
+        Self {
+            min: DVec2::new(x, y),
+            max: DVec2::new(x + s, y + s),
+        }
     }
 
     /// The four quadrants, in the order (−,−), (+,−), (−,+), (+,+).
@@ -46,10 +49,22 @@ impl Rect {
     pub fn quadrants(&self) -> [Self; 4] {
         let c = 0.5 * (self.min + self.max);
         [
-            Self { min: self.min, max: c },
-            Self { min: DVec2::new(c.x, self.min.y), max: DVec2::new(self.max.x, c.y) },
-            Self { min: DVec2::new(self.min.x, c.y), max: DVec2::new(c.x, self.max.y) },
-            Self { min: c, max: self.max },
+            Self {
+                min: self.min,
+                max: c,
+            },
+            Self {
+                min: DVec2::new(c.x, self.min.y),
+                max: DVec2::new(self.max.x, c.y),
+            },
+            Self {
+                min: DVec2::new(self.min.x, c.y),
+                max: DVec2::new(c.x, self.max.y),
+            },
+            Self {
+                min: c,
+                max: self.max,
+            },
         ]
     }
 
@@ -103,7 +118,11 @@ pub fn angle_point(a: f64, t: f64) -> ChartPoint {
     let (sa, ca) = (m::sin(a), m::cos(a));
     let (st, ct) = (m::sin(t), m::cos(t));
     let p = DVec2::new(sa, ca * st);
-    ChartPoint { p, w: DVec3::new(sa, ca * st, ca * ct), jacobian: ca * ca * ct }
+    ChartPoint {
+        p,
+        w: DVec3::new(sa, ca * st, ca * ct),
+        jacobian: ca * ca * ct,
+    }
 }
 
 /// The concentric map at a square point given by its sine coordinates (α, β), with z exact.
@@ -115,7 +134,11 @@ pub fn sine_point(alpha: f64, beta: f64) -> ChartPoint {
     let p = DVec2::new(sa, sb);
     // r = max(|a|, |b|), and z = √(1 − r²) is the cosine of the larger angle.
     let z = if sa.abs() >= sb.abs() { ca } else { cb };
-    ChartPoint { p, w: concentric_direction(p, z), jacobian: ca * cb }
+    ChartPoint {
+        p,
+        w: concentric_direction(p, z),
+        jacobian: ca * cb,
+    }
 }
 
 /// The concentric map's direction at square point `p` with its z already known.
@@ -185,13 +208,21 @@ impl UnitRule {
     #[inline]
     pub fn on(&self, a: f64, b: f64) -> impl Iterator<Item = (f64, f64)> + '_ {
         let h = b - a;
-        self.nodes.iter().zip(&self.weights).map(move |(&x, &w)| (a + h * x, h * w))
+        self.nodes
+            .iter()
+            .zip(&self.weights)
+            .map(move |(&x, &w)| (a + h * x, h * w))
     }
 }
 
 /// ∫ f over `rect` ∩ disk with f given per direction (the square measure dx dy), by the map's
 /// chart rule (one application, no adaptivity). `f` returns f_r's luminance.
-pub fn integrate_once(map: DiskMap, rect: &Rect, rule: &UnitRule, f: &impl Fn(DVec3) -> f64) -> f64 {
+pub fn integrate_once(
+    map: DiskMap,
+    rect: &Rect,
+    rule: &UnitRule,
+    f: &impl Fn(DVec3) -> f64,
+) -> f64 {
     match map {
         DiskMap::Orthographic => integrate_angle(rect, rule, f),
         DiskMap::Concentric => integrate_sine(rect, rule, f),
@@ -234,7 +265,10 @@ fn integrate_angle(rect: &Rect, rule: &UnitRule, f: &impl Fn(DVec3) -> f64) -> f
             if ylo >= yhi || ca <= 0.0 {
                 continue;
             }
-            let (t0, t1) = (m::asin((ylo / ca).clamp(-1.0, 1.0)), m::asin((yhi / ca).clamp(-1.0, 1.0)));
+            let (t0, t1) = (
+                m::asin((ylo / ca).clamp(-1.0, 1.0)),
+                m::asin((yhi / ca).clamp(-1.0, 1.0)),
+            );
             // A limit on the rim (t = ±π/2) is where f may grow like z^{-1/2}: remap it too.
             let (r0, r1) = (ylo <= -ca, yhi >= ca);
             let mut inner = 0.0;
@@ -259,7 +293,10 @@ fn remap(x0: f64, x1: f64, s0: bool, s1: bool, u: f64, wu: f64) -> (f64, f64) {
         (false, false) => (x0 + d * u, wu * d),
         (true, false) => (x0 + d * u * u, wu * d * 2.0 * u),
         (false, true) => (x1 - d * (1.0 - u) * (1.0 - u), wu * d * 2.0 * (1.0 - u)),
-        (true, true) => (x0 + d * u * u * (3.0 - 2.0 * u), wu * d * 6.0 * u * (1.0 - u)),
+        (true, true) => (
+            x0 + d * u * u * (3.0 - 2.0 * u),
+            wu * d * 6.0 * u * (1.0 - u),
+        ),
     }
 }
 
@@ -273,7 +310,12 @@ fn integrate_sine(rect: &Rect, rule: &UnitRule, f: &impl Fn(DVec3) -> f64) -> f6
     let diag = rect.min.x == rect.min.y && rect.max.x == rect.max.y;
     let anti = rect.min.x == -rect.max.y && rect.max.x == -rect.min.y;
     let c = DVec2::new(0.5 * (al0 + al1), 0.5 * (be0 + be1));
-    let corners = [DVec2::new(al0, be0), DVec2::new(al1, be0), DVec2::new(al1, be1), DVec2::new(al0, be1)];
+    let corners = [
+        DVec2::new(al0, be0),
+        DVec2::new(al1, be0),
+        DVec2::new(al1, be1),
+        DVec2::new(al0, be1),
+    ];
     match (diag, anti) {
         (false, false) => {
             let mut total = 0.0;
@@ -286,9 +328,17 @@ fn integrate_sine(rect: &Rect, rule: &UnitRule, f: &impl Fn(DVec3) -> f64) -> f6
         }
         // Split along the kink line(s): the main diagonal joins corners 0 and 2, the
         // anti-diagonal corners 1 and 3; with both, four triangles meet at the centre.
-        (true, false) => triangle(rule, corners[0], corners[1], corners[2], &h) + triangle(rule, corners[0], corners[2], corners[3], &h),
-        (false, true) => triangle(rule, corners[1], corners[2], corners[3], &h) + triangle(rule, corners[1], corners[3], corners[0], &h),
-        (true, true) => (0..4).map(|k| triangle(rule, c, corners[k], corners[(k + 1) % 4], &h)).sum(),
+        (true, false) => {
+            triangle(rule, corners[0], corners[1], corners[2], &h)
+                + triangle(rule, corners[0], corners[2], corners[3], &h)
+        }
+        (false, true) => {
+            triangle(rule, corners[1], corners[2], corners[3], &h)
+                + triangle(rule, corners[1], corners[3], corners[0], &h)
+        }
+        (true, true) => (0..4)
+            .map(|k| triangle(rule, c, corners[k], corners[(k + 1) % 4], &h))
+            .sum(),
     }
 }
 
@@ -321,14 +371,26 @@ pub fn integrate_adaptive(
     refine(map, rect, coarse, rule, tol, depth, f)
 }
 
-fn refine(map: DiskMap, rect: &Rect, coarse: f64, rule: &UnitRule, tol: f64, depth: u32, f: &impl Fn(DVec3) -> f64) -> f64 {
+fn refine(
+    map: DiskMap,
+    rect: &Rect,
+    coarse: f64,
+    rule: &UnitRule,
+    tol: f64,
+    depth: u32,
+    f: &impl Fn(DVec3) -> f64,
+) -> f64 {
     let quads = rect.quadrants();
     let parts = quads.map(|q| integrate_once(map, &q, rule, f));
     let fine: f64 = parts.iter().sum();
     if depth == 0 || (fine - coarse).abs() <= tol {
         return fine;
     }
-    quads.iter().zip(parts).map(|(q, c)| refine(map, q, c, rule, 0.5 * tol, depth - 1, f)).sum()
+    quads
+        .iter()
+        .zip(parts)
+        .map(|(q, c)| refine(map, q, c, rule, 0.5 * tol, depth - 1, f))
+        .sum()
 }
 
 /// The box of a leaf in its sampling chart, and the map from chart coordinates back.
@@ -351,7 +413,11 @@ impl Proposal {
             DiskMap::Orthographic => {
                 let (_, far) = rect.radius_range();
                 if far < 1.0 - 1e-12 {
-                    return Self { chart: Chart::Square, lo: rect.min, hi: rect.max };
+                    return Self {
+                        chart: Chart::Square,
+                        lo: rect.min,
+                        hi: rect.max,
+                    };
                 }
                 let (xa, xb) = (rect.min.x.clamp(-1.0, 1.0), rect.max.x.clamp(-1.0, 1.0));
                 let (a0, a1) = (m::asin(xa), m::asin(xb));
@@ -375,12 +441,23 @@ impl Proposal {
                 if !(tlo < thi) {
                     (tlo, thi) = (-FRAC_PI_2, FRAC_PI_2);
                 }
-                Self { chart: Chart::Angle, lo: DVec2::new(a0, tlo), hi: DVec2::new(a1, thi) }
+                Self {
+                    chart: Chart::Angle,
+                    lo: DVec2::new(a0, tlo),
+                    hi: DVec2::new(a1, thi),
+                }
             }
             DiskMap::Concentric => {
-                let edge = rect.min.x <= -1.0 || rect.min.y <= -1.0 || rect.max.x >= 1.0 || rect.max.y >= 1.0;
+                let edge = rect.min.x <= -1.0
+                    || rect.min.y <= -1.0
+                    || rect.max.x >= 1.0
+                    || rect.max.y >= 1.0;
                 if !edge {
-                    return Self { chart: Chart::Square, lo: rect.min, hi: rect.max };
+                    return Self {
+                        chart: Chart::Square,
+                        lo: rect.min,
+                        hi: rect.max,
+                    };
                 }
                 let s = |x: f64| m::asin(x.clamp(-1.0, 1.0));
                 Self {
@@ -405,7 +482,11 @@ impl Proposal {
     #[must_use]
     pub fn point(&self, map: DiskMap, rect: &Rect, q: DVec2) -> Option<ChartPoint> {
         match self.chart {
-            Chart::Square => square_direction(map, q).map(|w| ChartPoint { p: q, w, jacobian: 1.0 }),
+            Chart::Square => square_direction(map, q).map(|w| ChartPoint {
+                p: q,
+                w,
+                jacobian: 1.0,
+            }),
             Chart::Angle => {
                 let c = angle_point(q.x, q.y);
                 (c.p.y >= rect.min.y && c.p.y < rect.max.y && c.jacobian > 0.0).then_some(c)
@@ -420,7 +501,9 @@ impl Proposal {
         match self.chart {
             Chart::Square => match map {
                 DiskMap::Orthographic => DVec2::new(w.x, w.y),
-                DiskMap::Concentric => brdf_core::maps::disk_to_square_concentric(w.truncate().as_vec2()).as_dvec2(),
+                DiskMap::Concentric => {
+                    brdf_core::maps::disk_to_square_concentric(w.truncate().as_vec2()).as_dvec2()
+                }
             },
             Chart::Angle => {
                 let a = m::asin(w.x.clamp(-1.0, 1.0));
@@ -429,7 +512,8 @@ impl Proposal {
                 DVec2::new(a, t)
             }
             Chart::Sine => {
-                let p = brdf_core::maps::disk_to_square_concentric(w.truncate().as_vec2()).as_dvec2();
+                let p =
+                    brdf_core::maps::disk_to_square_concentric(w.truncate().as_vec2()).as_dvec2();
                 DVec2::new(m::asin(p.x.clamp(-1.0, 1.0)), m::asin(p.y.clamp(-1.0, 1.0)))
             }
         }
@@ -444,7 +528,9 @@ mod tests {
     fn nodes(depth: u32) -> alloc::vec::Vec<Rect> {
         let n = 1usize << depth;
         let s = 2.0 / n as f64;
-        (0..n * n).map(|k| Rect::square(-1.0 + (k % n) as f64 * s, -1.0 + (k / n) as f64 * s, s)).collect()
+        (0..n * n)
+            .map(|k| Rect::square(-1.0 + (k % n) as f64 * s, -1.0 + (k / n) as f64 * s, s))
+            .collect()
     }
 
     /// ∫ 1 over the disk = π (orthographic); over the square = 4 (concentric); ∫ z = 2π/3 on the
@@ -453,16 +539,28 @@ mod tests {
     fn chart_rules_integrate_exactly_across_the_rim() {
         let rule = UnitRule::new(10);
         for depth in 0..5 {
-            let one: f64 = nodes(depth).iter().map(|r| integrate_once(DiskMap::Orthographic, r, &rule, &|_| 1.0)).sum();
+            let one: f64 = nodes(depth)
+                .iter()
+                .map(|r| integrate_once(DiskMap::Orthographic, r, &rule, &|_| 1.0))
+                .sum();
             // The rim remapping trades a little accuracy on the root's single big piece.
             let tol = if depth == 0 { 1e-5 } else { 1e-9 };
             assert!((one - PI).abs() < tol, "depth {depth}: {one}");
-            let z: f64 = nodes(depth).iter().map(|r| integrate_once(DiskMap::Orthographic, r, &rule, &|w| w.z)).sum();
+            let z: f64 = nodes(depth)
+                .iter()
+                .map(|r| integrate_once(DiskMap::Orthographic, r, &rule, &|w| w.z))
+                .sum();
             assert!((z - 2.0 * PI / 3.0).abs() < tol, "depth {depth}: {z}");
-            let sq: f64 = nodes(depth).iter().map(|r| integrate_once(DiskMap::Concentric, r, &rule, &|_| 1.0)).sum();
+            let sq: f64 = nodes(depth)
+                .iter()
+                .map(|r| integrate_once(DiskMap::Concentric, r, &rule, &|_| 1.0))
+                .sum();
             assert!((sq - 4.0).abs() < 1e-9, "depth {depth}: {sq}");
             // ∫ z over the concentric square = (4/π) ∫ z dA_disk = (4/π)(2π/3) = 8/3.
-            let zc: f64 = nodes(depth).iter().map(|r| integrate_once(DiskMap::Concentric, r, &rule, &|w| w.z)).sum();
+            let zc: f64 = nodes(depth)
+                .iter()
+                .map(|r| integrate_once(DiskMap::Concentric, r, &rule, &|w| w.z))
+                .sum();
             assert!((zc - 8.0 / 3.0).abs() < 1e-6, "depth {depth}: {zc}");
         }
     }
@@ -472,7 +570,9 @@ mod tests {
         let rule = UnitRule::new(8);
         // Quarter disk [0,1]²: area π/4.
         let r = Rect::square(0.0, 0.0, 1.0);
-        assert!((integrate_once(DiskMap::Orthographic, &r, &rule, &|_| 1.0) - PI / 4.0).abs() < 1e-9);
+        assert!(
+            (integrate_once(DiskMap::Orthographic, &r, &rule, &|_| 1.0) - PI / 4.0).abs() < 1e-9
+        );
         // A node crossing the rim: [0.5,1]×[0.5,1] ∩ disk, area by the closed form.
         let r = Rect::square(0.5, 0.5, 0.5);
         let x0 = (0.75f64).sqrt();
@@ -490,10 +590,24 @@ mod tests {
         // = ∫ cos^n θ cos θ dω = 2π/(n+2).
         let n = 2000.0;
         let f = |w: DVec3| m::pow(w.z, n);
-        let got = integrate_adaptive(DiskMap::Orthographic, &Rect::square(-1.0, -1.0, 2.0), &rule, 1e-9, 14, &f);
+        let got = integrate_adaptive(
+            DiskMap::Orthographic,
+            &Rect::square(-1.0, -1.0, 2.0),
+            &rule,
+            1e-9,
+            14,
+            &f,
+        );
         let want = 2.0 * PI / (n + 2.0);
         assert!((got - want).abs() < 1e-6 * want, "{got} vs {want}");
-        let got = integrate_adaptive(DiskMap::Concentric, &Rect::square(-1.0, -1.0, 2.0), &rule, 1e-9, 14, &f);
+        let got = integrate_adaptive(
+            DiskMap::Concentric,
+            &Rect::square(-1.0, -1.0, 2.0),
+            &rule,
+            1e-9,
+            14,
+            &f,
+        );
         let want = want * 4.0 / PI;
         assert!((got - want).abs() < 1e-6 * want, "{got} vs {want}");
     }
@@ -504,8 +618,11 @@ mod tests {
             for r in nodes(3) {
                 let prop = Proposal::for_node(map, &r);
                 for (i, j) in [(1, 1), (3, 5), (6, 2)] {
-                    let q = prop.lo + (prop.hi - prop.lo) * DVec2::new(f64::from(i) / 7.0, f64::from(j) / 7.0);
-                    let Some(c) = prop.point(map, &r, q) else { continue };
+                    let q = prop.lo
+                        + (prop.hi - prop.lo) * DVec2::new(f64::from(i) / 7.0, f64::from(j) / 7.0);
+                    let Some(c) = prop.point(map, &r, q) else {
+                        continue;
+                    };
                     assert!((c.w.length() - 1.0).abs() < 1e-12);
                     let back = prop.coordinates(map, c.w);
                     assert!((back - q).length() < 1e-5, "{map:?} {r:?} {q} -> {back}");

@@ -82,17 +82,26 @@ impl BuildConfig {
     /// The default with a target mean number of trials (SPEC §3's target mode).
     #[must_use]
     pub fn with_target_trials(target: f64) -> Self {
-        Self { target_trials: Some(target), ..Self::default() }
+        Self {
+            target_trials: Some(target),
+            ..Self::default()
+        }
     }
 
     /// Checks every option's range.
     pub fn validate(&self) -> Result<(), BuildError> {
         let bad = |message| Err(BuildError::Config { message });
         if !(self.split_threshold > 0.0 && self.split_threshold <= 1.0) {
-            return bad(format!("split_threshold = {} must be in (0, 1]", self.split_threshold));
+            return bad(format!(
+                "split_threshold = {} must be in (0, 1]",
+                self.split_threshold
+            ));
         }
         if !(self.integration_tolerance > 0.0 && self.integration_tolerance < 1.0) {
-            return bad(format!("integration_tolerance = {} must be in (0, 1)", self.integration_tolerance));
+            return bad(format!(
+                "integration_tolerance = {} must be in (0, 1)",
+                self.integration_tolerance
+            ));
         }
         let n = match self.rule {
             IntegrationRule::Midpoint { n } | IntegrationRule::GaussLegendre { n } => n,
@@ -104,7 +113,10 @@ impl BuildConfig {
             return bad(format!("max_depth = {} must be at most 30", self.max_depth));
         }
         if self.node_budget < 1 {
-            return bad(format!("node_budget = {} must be at least 1", self.node_budget));
+            return bad(format!(
+                "node_budget = {} must be at least 1",
+                self.node_budget
+            ));
         }
         if let Some(t) = self.target_trials {
             if !(t >= 1.0) {
@@ -112,13 +124,22 @@ impl BuildConfig {
             }
         }
         if !(self.bound_safety >= 1.0 && self.bound_safety.is_finite()) {
-            return bad(format!("bound_safety = {} must be at least 1", self.bound_safety));
+            return bad(format!(
+                "bound_safety = {} must be at least 1",
+                self.bound_safety
+            ));
         }
         if !(2..=64).contains(&self.bound_grid) {
-            return bad(format!("bound_grid = {} must be in [2, 64]", self.bound_grid));
+            return bad(format!(
+                "bound_grid = {} must be in [2, 64]",
+                self.bound_grid
+            ));
         }
         if !(self.min_relative_waste >= 0.0 && self.min_relative_waste < 1.0) {
-            return bad(format!("min_relative_waste = {} must be in [0, 1)", self.min_relative_waste));
+            return bad(format!(
+                "min_relative_waste = {} must be in [0, 1)",
+                self.min_relative_waste
+            ));
         }
         Ok(())
     }

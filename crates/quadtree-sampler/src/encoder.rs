@@ -32,7 +32,11 @@ impl Encoder {
         if !(wi_local.z > 0.0) {
             return Err(DirectionError::BelowHorizon);
         }
-        Ok(Self { frame, wi_local, map })
+        Ok(Self {
+            frame,
+            wi_local,
+            map,
+        })
     }
 
     /// The frame.
@@ -57,7 +61,9 @@ impl Encoder {
     /// orthographic disk).
     #[must_use]
     pub fn to_direction(&self, p: Vec2) -> Option<Vec3> {
-        self.map.square_to_direction(p).map(|w| self.frame.to_world(w))
+        self.map
+            .square_to_direction(p)
+            .map(|w| self.frame.to_world(w))
     }
 }
 
@@ -74,21 +80,36 @@ pub fn refleja<B: Brdf + ?Sized, R: Rng + ?Sized>(
 ) -> Result<Option<Sample>, BuildError> {
     let enc = Encoder::new(wi, normal, DiskMap::Orthographic)?;
     let wi_l = enc.wi_local();
-    let to_world = |s: Sample| Sample { wo: enc.frame().to_world(s.wo), ..s };
+    let to_world = |s: Sample| Sample {
+        wo: enc.frame().to_world(s.wo),
+        ..s
+    };
     let delta = luminance(brdf.delta_reflectance(wi_l));
     if brdf.is_delta() {
-        let s = brdf.sample(wi_l, uniform_f32(rng), Vec2::new(uniform_f32(rng), uniform_f32(rng)));
+        let s = brdf.sample(
+            wi_l,
+            uniform_f32(rng),
+            Vec2::new(uniform_f32(rng), uniform_f32(rng)),
+        );
         return Ok(s.map(Sample::from).map(to_world));
     }
     let sampler = QuadtreeSampler::new(brdf, wi_l, BuildConfig::default())?;
     let rho = sampler.albedo() as f32;
-    let p_delta = if delta > 0.0 { delta / (delta + rho) } else { 0.0 };
+    let p_delta = if delta > 0.0 {
+        delta / (delta + rho)
+    } else {
+        0.0
+    };
     if p_delta > 0.0 && uniform_f32(rng) < p_delta {
         let s = BrdfSample::delta(mirror(wi_l), brdf.delta_reflectance(wi_l), p_delta);
         return Ok(s.map(Sample::from).map(to_world));
     }
     Ok(sampler.sample(rng).map(|s| {
         let pdf = s.pdf * (1.0 - p_delta);
-        to_world(Sample { pdf, weight: s.f * (s.wo.z / pdf), ..s })
+        to_world(Sample {
+            pdf,
+            weight: s.f * (s.wo.z / pdf),
+            ..s
+        })
     }))
 }

@@ -67,5 +67,8 @@ pub use brdf_core;
 pub use config::{BuildConfig, IntegrationRule};
 pub use encoder::{Encoder, refleja};
 pub use error::BuildError;
-pub use sampler::{Baseline, BaselineSampler, DirectionSampler, MAX_TRIALS, QuadtreeSampler, Sample, uniform_f32, uniform_f64, weight_luminance};
+pub use sampler::{
+    Baseline, BaselineSampler, DirectionSampler, MAX_TRIALS, QuadtreeSampler, Sample, uniform_f32,
+    uniform_f64, weight_luminance,
+};
 pub use tree::{LEAF, Node, Quadtree, TreeStats, albedo_of_volume};

@@ -43,7 +43,14 @@ pub struct Sample {
 
 impl From<BrdfSample> for Sample {
     fn from(s: BrdfSample) -> Self {
-        Self { wo: s.wo, pdf: s.pdf, f: s.f, weight: s.weight, delta: s.delta, trials: 1 }
+        Self {
+            wo: s.wo,
+            pdf: s.pdf,
+            f: s.f,
+            weight: s.weight,
+            delta: s.delta,
+            trials: 1,
+        }
     }
 }
 
@@ -183,7 +190,11 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
     /// `muestrear`: rejection in leaf `leaf`: a point uniform in the leaf's proposal box, a
     /// height uniform in [0, M); accept when the height is below f (times the chart's
     /// Jacobian). Returns the accepted point and the number of trials.
-    pub fn sample_leaf<R: Rng + ?Sized>(&self, leaf: usize, rng: &mut R) -> Option<(ChartPoint, u32)> {
+    pub fn sample_leaf<R: Rng + ?Sized>(
+        &self,
+        leaf: usize,
+        rng: &mut R,
+    ) -> Option<(ChartPoint, u32)> {
         let node = &self.tree.nodes()[leaf];
         let (prop, rect, m) = (node.proposal, node.rect(), node.bound);
         if !(node.v1 > 0.0 && m > 0.0) {
@@ -193,7 +204,9 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
         for trial in 1..=MAX_TRIALS {
             let q = prop.lo + span * DVec2::new(uniform_f64(rng), uniform_f64(rng));
             let z = m * uniform_f64(rng);
-            let Some(c) = prop.point(self.config.map, &rect, q) else { continue };
+            let Some(c) = prop.point(self.config.map, &rect, q) else {
+                continue;
+            };
             let h = f64::from(self.brdf.eval_luminance(self.wi, c.w.as_vec3())) * c.jacobian;
             if h > m {
                 self.violations.fetch_add(1, Ordering::Relaxed);
@@ -216,7 +229,14 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
         if !(pdf > 0.0 && wo.z > 0.0) {
             return None;
         }
-        Some(Sample { wo, pdf, f, weight: f * (wo.z / pdf), delta: false, trials })
+        Some(Sample {
+            wo,
+            pdf,
+            f,
+            weight: f * (wo.z / pdf),
+            delta: false,
+            trials,
+        })
     }
 
     /// The density per unit solid angle that [`QuadtreeSampler::sample`] reports for `wo`:
@@ -266,7 +286,11 @@ pub struct BaselineSampler<'a, B: Brdf + ?Sized> {
 impl<'a, B: Brdf + ?Sized> BaselineSampler<'a, B> {
     /// A baseline for local `wi` (normalised; it must be above the horizon).
     pub fn new(brdf: &'a B, wi: Vec3, kind: Baseline) -> Result<Self, BuildError> {
-        Ok(Self { brdf, wi: unit_direction_above(wi)?, kind })
+        Ok(Self {
+            brdf,
+            wi: unit_direction_above(wi)?,
+            kind,
+        })
     }
 
     /// Draws one direction with generic RNG.
@@ -280,7 +304,8 @@ impl<'a, B: Brdf + ?Sized> BaselineSampler<'a, B> {
                     Baseline::Uniform => brdf_core::warp::sample_uniform_hemisphere(u),
                     _ => brdf_core::warp::sample_cosine_hemisphere(u),
                 };
-                BrdfSample::continuous(wo, self.brdf.eval(self.wi, wo), self.pdf(wo)).map(Sample::from)
+                BrdfSample::continuous(wo, self.brdf.eval(self.wi, wo), self.pdf(wo))
+                    .map(Sample::from)
             }
         }
     }

@@ -73,6 +73,48 @@ impl Node {
     }
 }
 
+/// Azimuths of points on the unit circle inside `rect`: nine per arc, ends included (nudged
+/// inside). The arcs' ends are where the circle crosses the rectangle's edges.
+fn rim_arc_points(rect: &Rect) -> Vec<f64> {
+    use core::f64::consts::{PI, TAU};
+    let mut cuts: Vec<f64> = Vec::with_capacity(10);
+    for x in [rect.min.x, rect.max.x] {
+        if x.abs() <= 1.0 {
+            let a = m::acos(x);
+            cuts.extend([a, TAU - a]);
+        }
+    }
+    for y in [rect.min.y, rect.max.y] {
+        if y.abs() <= 1.0 {
+            let a = m::asin(y);
+            cuts.extend([a.rem_euclid(TAU), (PI - a).rem_euclid(TAU)]);
+        }
+    }
+    cuts.sort_unstable_by(f64::total_cmp);
+    let inside = |phi: f64| rect.contains(DVec2::new(m::cos(phi), m::sin(phi)));
+    let mut points = Vec::new();
+    if cuts.is_empty() {
+        if inside(0.0) {
+            points.extend((0..64).map(|k| TAU * k as f64 / 64.0));
+        }
+        return points;
+    }
+    for k in 0..cuts.len() {
+        let a = cuts[k];
+        let b = if k + 1 < cuts.len() {
+            cuts[k + 1]
+        } else {
+            cuts[0] + TAU
+        };
+        if b - a < 1e-15 || !inside(0.5 * (a + b)) {
+            continue;
+        }
+        let pad = (b - a) * 1e-9;
+        points.extend((0..9).map(|j| a + pad + (b - a - 2.0 * pad) * j as f64 / 8.0));
+    }
+    points
+}
+
 /// What [`Context::rim_probe`] found: f's behaviour approaching the rim inside a node.
 #[derive(Clone, Copy, Debug)]
 enum RimProbe {
@@ -108,8 +150,20 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             IntegrationRule::Midpoint { n } => UnitRule::midpoint(usize::from(n)),
             IntegrationRule::GaussLegendre { n } => UnitRule::new(usize::from(n)),
         };
-        let hints = brdf.peak_hints(wi).as_slice().iter().map(|h| h.as_dvec3().normalize()).collect();
-        let mut ctx = Self { brdf, wi, config, rule, hints, tol_floor: 0.0 };
+        let hints = brdf
+            .peak_hints(wi)
+            .as_slice()
+            .iter()
+            .map(|h| h.as_dvec3().normalize())
+            .collect();
+        let mut ctx = Self {
+            brdf,
+            wi,
+            config,
+            rule,
+            hints,
+            tol_floor: 0.0,
+        };
         let root = Rect::square(-1.0, -1.0, 2.0);
         let f = |w: DVec3| ctx.f(w);
         let coarse = crate::chart::integrate_once(config.map, &root, &ctx.rule, &f);
@@ -127,7 +181,8 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
     /// The proposal's height function h = f·Jacobian at chart point q (0 outside the node).
     #[inline]
     fn height(&self, prop: &Proposal, rect: &Rect, q: DVec2) -> f64 {
-        prop.point(self.config.map, rect, q).map_or(0.0, |c| self.f(c.w) * c.jacobian)
+        prop.point(self.config.map, rect, q)
+            .map_or(0.0, |c| self.f(c.w) * c.jacobian)
     }
 
     fn evaluate(&self, rect: &Rect) -> Evaluation {
@@ -135,26 +190,58 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         let mut prop = Proposal::for_node(map, rect);
         // The angle chart is needed only where f is unbounded at the rim; elsewhere the seed's
         // square proposal is tighter (its only waste, outside the disk, shrinks as it splits).
-        let rim_peak = if prop.chart == Chart::Angle { self.rim_probe(rect) } else { None };
+        let rim_peak = if prop.chart == Chart::Angle {
+            self.rim_probe(rect)
+        } else {
+            None
+        };
         if let Some(RimProbe::Bounded(_)) = rim_peak {
-            prop = Proposal { chart: Chart::Square, lo: rect.min, hi: rect.max };
+            prop = Proposal {
+                chart: Chart::Square,
+                lo: rect.min,
+                hi: rect.max,
+            };
         }
         if map == DiskMap::Orthographic && rect.radius_range().0 >= 1.0 {
-            return Evaluation { v1: 0.0, bound: 0.0, proposal: prop };
+            return Evaluation {
+                v1: 0.0,
+                bound: 0.0,
+                proposal: prop,
+            };
         }
         let f = |w: DVec3| self.f(w);
         let coarse = crate::chart::integrate_once(map, rect, &self.rule, &f);
         let tol = (self.config.integration_tolerance * coarse.abs()).max(self.tol_floor);
-        let v1 = integrate_adaptive(map, rect, &self.rule, tol, u32::from(self.config.integration_depth), &f).max(0.0);
+        let v1 = integrate_adaptive(
+            map,
+            rect,
+            &self.rule,
+            tol,
+            u32::from(self.config.integration_depth),
+            &f,
+        )
+        .max(0.0);
         // A bound below the node's mean height is certainly wrong (a peak between the points
         // looked at): take four times the mean instead, so that P = ¼ splits the node.
-        let mean = if prop.area() > 0.0 { v1 / prop.area() } else { 0.0 };
+        let mean = if prop.area() > 0.0 {
+            v1 / prop.area()
+        } else {
+            0.0
+        };
         let mut found = self.bound(&prop, rect);
         if let Some(RimProbe::Bounded(limit)) = rim_peak {
             found = found.max(limit * self.config.bound_safety);
         }
-        let bound = if found >= mean * self.config.bound_safety { found } else { 4.0 * mean };
-        Evaluation { v1, bound, proposal: prop }
+        let bound = if found >= mean * self.config.bound_safety {
+            found
+        } else {
+            4.0 * mean
+        };
+        Evaluation {
+            v1,
+            bound,
+            proposal: prop,
+        }
     }
 
     /// M: the largest h found on a dense grid (edges and corners included), at the peak hints
@@ -197,7 +284,9 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         for w in &self.hints {
             let p = match map {
                 DiskMap::Orthographic => DVec2::new(w.x, w.y),
-                DiskMap::Concentric => brdf_core::maps::disk_to_square_concentric(w.truncate().as_vec2()).as_dvec2(),
+                DiskMap::Concentric => {
+                    brdf_core::maps::disk_to_square_concentric(w.truncate().as_vec2()).as_dvec2()
+                }
             };
             if rect.contains(p) {
                 let q = prop.coordinates(map, *w).clamp(lo, hi);
@@ -213,20 +302,14 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         max * self.config.bound_safety
     }
 
-    /// Looks at f along the part of the rim inside the node, at heights z = 1e-6 and 1e-10
-    /// above it. If f still grows between them (Ward's 1/√z grows 100-fold) it is unbounded
-    /// there; otherwise the largest value seen is its limit at the rim.
+    /// Looks at f along the node's own arc of the rim (nine points on each arc inside the
+    /// node), at heights z = 1e-6 and 1e-10 above it. If f still grows between them (Ward's
+    /// 1/√z grows 100-fold) it is unbounded there; otherwise the largest value seen is its
+    /// limit at the rim.
     fn rim_probe(&self, rect: &Rect) -> Option<RimProbe> {
-        const K: usize = 64;
         let mut limit: f64 = 0.0;
-        let mut any = false;
-        for k in 0..K {
-            let phi = core::f64::consts::TAU * (k as f64 + 0.5) / K as f64;
+        for phi in rim_arc_points(rect) {
             let (c, s) = (m::cos(phi), m::sin(phi));
-            if !rect.contains(DVec2::new(c, s)) {
-                continue;
-            }
-            any = true;
             let at = |z: f64| {
                 let r = m::sqrt((1.0 - z) * (1.0 + z));
                 self.f(DVec3::new(r * c, r * s, z))
@@ -237,34 +320,29 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             }
             limit = limit.max(near).max(nearer);
         }
-        // A node that only grazes the rim between probe angles: test its corner on the rim side.
-        if !any {
-            let far = DVec2::new(
-                if rect.max.x.abs() > rect.min.x.abs() { rect.max.x } else { rect.min.x },
-                if rect.max.y.abs() > rect.min.y.abs() { rect.max.y } else { rect.min.y },
-            );
-            let d = far.normalize_or_zero();
-            let at = |z: f64| {
-                let r = m::sqrt((1.0 - z) * (1.0 + z));
-                self.f(DVec3::new(r * d.x, r * d.y, z))
-            };
-            let (near, nearer) = (at(1e-6), at(1e-10));
-            if nearer > 1.5 * near && nearer > 0.0 {
-                return Some(RimProbe::Unbounded);
-            }
-            limit = near.max(nearer);
-        }
         Some(RimProbe::Bounded(limit))
     }
 
     /// Hill-climbs h from q0 with axis steps, halving them when no step improves.
-    fn compass_search(&self, prop: &Proposal, rect: &Rect, q0: DVec2, h0: f64, step0: DVec2) -> f64 {
+    fn compass_search(
+        &self,
+        prop: &Proposal,
+        rect: &Rect,
+        q0: DVec2,
+        h0: f64,
+        step0: DVec2,
+    ) -> f64 {
         let (mut q, mut h, mut step) = (q0, h0, step0);
         let stop = step0 * 1e-4;
         let mut evals = 0;
         while (step.x > stop.x || step.y > stop.y) && evals < 400 {
             let mut moved = false;
-            for d in [DVec2::new(step.x, 0.0), DVec2::new(-step.x, 0.0), DVec2::new(0.0, step.y), DVec2::new(0.0, -step.y)] {
+            for d in [
+                DVec2::new(step.x, 0.0),
+                DVec2::new(-step.x, 0.0),
+                DVec2::new(0.0, step.y),
+                DVec2::new(0.0, -step.y),
+            ] {
                 let c = (q + d).clamp(prop.lo, prop.hi);
                 let hc = self.height(prop, rect, c);
                 evals += 1;
@@ -326,14 +404,25 @@ impl Quadtree {
     pub(crate) fn build<B: Brdf + ?Sized>(ctx: &Context<'_, B>) -> Result<Self, BuildError> {
         ctx.config.validate()?;
         if ctx.brdf.is_delta() {
-            return Err(BuildError::DeltaModel { model: ctx.brdf.name() });
+            return Err(BuildError::DeltaModel {
+                model: ctx.brdf.name(),
+            });
         }
         let cfg = &ctx.config;
         let budget = cfg.node_budget as usize;
         let root_rect = Rect::square(-1.0, -1.0, 2.0);
         let e = ctx.evaluate(&root_rect);
         let mut tree = Self {
-            nodes: alloc::vec![Node { x: -1.0, y: -1.0, size: 2.0, depth: 0, first_child: LEAF, v1: e.v1, bound: e.bound, proposal: e.proposal }],
+            nodes: alloc::vec![Node {
+                x: -1.0,
+                y: -1.0,
+                size: 2.0,
+                depth: 0,
+                first_child: LEAF,
+                v1: e.v1,
+                bound: e.bound,
+                proposal: e.proposal
+            }],
             map: cfg.map,
             budget_exhausted: false,
         };
@@ -364,7 +453,9 @@ impl Quadtree {
         }
         // The seed's rule promises E[T] ≤ 1/threshold; the waste cut-off above can leave rim
         // leaves with P < threshold, so enforce the promise (and any stricter target).
-        let target = cfg.target_trials.map_or(1.0 / cfg.split_threshold, |t| t.min(1.0 / cfg.split_threshold));
+        let target = cfg.target_trials.map_or(1.0 / cfg.split_threshold, |t| {
+            t.min(1.0 / cfg.split_threshold)
+        });
         tree.refine_to_target(ctx, target);
         tree.sum_up();
         Ok(tree)
@@ -381,12 +472,27 @@ impl Quadtree {
             let h = 0.5 * n.size;
             for (dx, dy) in [(0.0, 0.0), (h, 0.0), (0.0, h), (h, h)] {
                 let (x, y) = (n.x + dx, n.y + dy);
-                rects.push((Rect::square(f64::from(x), f64::from(y), f64::from(h)), x, y, h, n.depth + 1));
+                rects.push((
+                    Rect::square(f64::from(x), f64::from(y), f64::from(h)),
+                    x,
+                    y,
+                    h,
+                    n.depth + 1,
+                ));
             }
         }
         let evals = ctx.evaluate_all(&rects.iter().map(|r| r.0).collect::<Vec<_>>());
         for ((_, x, y, s, depth), e) in rects.into_iter().zip(evals) {
-            self.nodes.push(Node { x, y, size: s, depth, first_child: LEAF, v1: e.v1, bound: e.bound, proposal: e.proposal });
+            self.nodes.push(Node {
+                x,
+                y,
+                size: s,
+                depth,
+                first_child: LEAF,
+                v1: e.v1,
+                bound: e.bound,
+                proposal: e.proposal,
+            });
         }
         (first_new..self.nodes.len() as u32).collect()
     }
@@ -512,7 +618,12 @@ impl Quadtree {
     /// Counts: nodes, leaves, depths, bytes, E[T].
     #[must_use]
     pub fn stats(&self) -> TreeStats {
-        let mut s = TreeStats { nodes: self.nodes.len(), bytes: self.nodes.len() * core::mem::size_of::<Node>(), budget_exhausted: self.budget_exhausted, ..TreeStats::default() };
+        let mut s = TreeStats {
+            nodes: self.nodes.len(),
+            bytes: self.nodes.len() * core::mem::size_of::<Node>(),
+            budget_exhausted: self.budget_exhausted,
+            ..TreeStats::default()
+        };
         let (mut boxes, mut v1s) = (0.0, 0.0);
         for (_, n) in self.leaves() {
             s.leaves += 1;

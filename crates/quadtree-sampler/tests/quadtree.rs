@@ -13,7 +13,11 @@ use std::f64::consts::PI;
 
 fn dir(theta: f64, phi: f64) -> Vec3 {
     let (t, p) = (theta.to_radians(), phi.to_radians());
-    Vec3::new((t.sin() * p.cos()) as f32, (t.sin() * p.sin()) as f32, t.cos() as f32)
+    Vec3::new(
+        (t.sin() * p.cos()) as f32,
+        (t.sin() * p.sin()) as f32,
+        t.cos() as f32,
+    )
 }
 
 /// Every non-delta model: defaults, and a sharp setting of the glossy ones.
@@ -54,15 +58,47 @@ fn builds_terminate_with_bounded_trials_and_the_right_albedo() {
             let wi = dir(theta, 30.0);
             let want = quadrature_albedo(&*b, wi);
             for map in [DiskMap::Orthographic, DiskMap::Concentric] {
-                let seed = QuadtreeSampler::new(&*b, wi, BuildConfig { map, ..BuildConfig::default() }).unwrap();
+                let seed = QuadtreeSampler::new(
+                    &*b,
+                    wi,
+                    BuildConfig {
+                        map,
+                        ..BuildConfig::default()
+                    },
+                )
+                .unwrap();
                 let s = seed.stats();
-                assert!(!s.budget_exhausted, "{name} {params:?} {theta}° {map:?}: budget");
-                assert!(s.expected_trials <= 2.0, "{name} {params:?} {theta}° {map:?}: E[T] = {}", s.expected_trials);
+                assert!(
+                    !s.budget_exhausted,
+                    "{name} {params:?} {theta}° {map:?}: budget"
+                );
+                assert!(
+                    s.expected_trials <= 2.0,
+                    "{name} {params:?} {theta}° {map:?}: E[T] = {}",
+                    s.expected_trials
+                );
                 let got = seed.albedo();
-                assert!((got - want).abs() <= 1e-3 * want, "{name} {params:?} {theta}° {map:?}: tree albedo {got} vs quadrature {want}");
-                let target = QuadtreeSampler::new(&*b, wi, BuildConfig { map, target_trials: Some(1.25), ..BuildConfig::default() }).unwrap();
+                assert!(
+                    (got - want).abs() <= 1e-3 * want,
+                    "{name} {params:?} {theta}° {map:?}: tree albedo {got} vs quadrature {want}"
+                );
+                let target = QuadtreeSampler::new(
+                    &*b,
+                    wi,
+                    BuildConfig {
+                        map,
+                        target_trials: Some(1.25),
+                        ..BuildConfig::default()
+                    },
+                )
+                .unwrap();
                 let t = target.stats();
-                assert!(t.expected_trials <= 1.25, "{name} {params:?} {theta}° {map:?}: target E[T] = {} ({} nodes)", t.expected_trials, t.nodes);
+                assert!(
+                    t.expected_trials <= 1.25,
+                    "{name} {params:?} {theta}° {map:?}: target E[T] = {} ({} nodes)",
+                    t.expected_trials,
+                    t.nodes
+                );
                 assert!((target.albedo() - want).abs() <= 1e-3 * want);
             }
         }
@@ -73,7 +109,8 @@ fn builds_terminate_with_bounded_trials_and_the_right_albedo() {
 fn builds_terminate_at_grazing_incidence() {
     for &(name, params) in SETS {
         let b = model(name, params);
-        let s = QuadtreeSampler::new(&*b, dir(89.9, 0.0), BuildConfig::with_target_trials(1.25)).unwrap();
+        let s = QuadtreeSampler::new(&*b, dir(89.9, 0.0), BuildConfig::with_target_trials(1.25))
+            .unwrap();
         assert!(s.stats().nodes <= 1 << 20);
         assert!(s.albedo().is_finite());
     }
@@ -81,14 +118,41 @@ fn builds_terminate_at_grazing_incidence() {
 
 #[test]
 fn serial_and_parallel_builds_are_bit_identical() {
-    for &(name, params) in &[("phong", &["n=1000"][..]), ("ward", &[][..]), ("cook-torrance", &["m=0.1"][..])] {
+    for &(name, params) in &[
+        ("phong", &["n=1000"][..]),
+        ("ward", &[][..]),
+        ("cook-torrance", &["m=0.1"][..]),
+    ] {
         let b = model(name, params);
         let wi = dir(45.0, 10.0);
         for target in [None, Some(1.1)] {
-            let serial = QuadtreeSampler::new(&*b, wi, BuildConfig { parallel: false, target_trials: target, ..BuildConfig::default() }).unwrap();
+            let serial = QuadtreeSampler::new(
+                &*b,
+                wi,
+                BuildConfig {
+                    parallel: false,
+                    target_trials: target,
+                    ..BuildConfig::default()
+                },
+            )
+            .unwrap();
             for threads in [1, 2, 3, 4] {
-                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-                let par = pool.install(|| QuadtreeSampler::new(&*b, wi, BuildConfig { parallel: true, target_trials: target, ..BuildConfig::default() }).unwrap());
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                let par = pool.install(|| {
+                    QuadtreeSampler::new(
+                        &*b,
+                        wi,
+                        BuildConfig {
+                            parallel: true,
+                            target_trials: target,
+                            ..BuildConfig::default()
+                        },
+                    )
+                    .unwrap()
+                });
                 assert_eq!(serial.tree().nodes().len(), par.tree().nodes().len());
                 for (a, c) in serial.tree().nodes().iter().zip(par.tree().nodes()) {
                     assert_eq!(a.v1.to_bits(), c.v1.to_bits(), "{name}: {threads} threads");
@@ -129,16 +193,37 @@ fn bad_inputs_are_typed_errors() {
         (Vec3::ZERO, DirectionError::ZeroLength),
         (Vec3::new(f32::NAN, 0.0, 1.0), DirectionError::NotFinite),
     ] {
-        assert_eq!(QuadtreeSampler::new(&*b, wi, BuildConfig::default()).unwrap_err(), BuildError::Direction(e));
+        assert_eq!(
+            QuadtreeSampler::new(&*b, wi, BuildConfig::default()).unwrap_err(),
+            BuildError::Direction(e)
+        );
     }
     for cfg in [
-        BuildConfig { split_threshold: 0.0, ..BuildConfig::default() },
-        BuildConfig { split_threshold: f64::NAN, ..BuildConfig::default() },
-        BuildConfig { target_trials: Some(0.5), ..BuildConfig::default() },
-        BuildConfig { bound_safety: 0.9, ..BuildConfig::default() },
-        BuildConfig { max_depth: 64, ..BuildConfig::default() },
+        BuildConfig {
+            split_threshold: 0.0,
+            ..BuildConfig::default()
+        },
+        BuildConfig {
+            split_threshold: f64::NAN,
+            ..BuildConfig::default()
+        },
+        BuildConfig {
+            target_trials: Some(0.5),
+            ..BuildConfig::default()
+        },
+        BuildConfig {
+            bound_safety: 0.9,
+            ..BuildConfig::default()
+        },
+        BuildConfig {
+            max_depth: 64,
+            ..BuildConfig::default()
+        },
     ] {
-        assert!(matches!(QuadtreeSampler::new(&*b, Vec3::Z, cfg), Err(BuildError::Config { .. })));
+        assert!(matches!(
+            QuadtreeSampler::new(&*b, Vec3::Z, cfg),
+            Err(BuildError::Config { .. })
+        ));
     }
     let n = Vec3::Z;
     assert!(refleja(&*b, -Vec3::Z, n, &mut Pcg64::seed_from_u64(1)).is_err());
@@ -152,18 +237,31 @@ fn cell_probabilities(b: &dyn Brdf, wi: Vec3, rings: usize, sectors: usize) -> V
     let mut p = vec![0.0; rings * sectors];
     for i in 0..rings {
         // Ring i: r² ∈ [i/R, (i+1)/R] ⇔ z ∈ [√(1 − (i+1)/R), √(1 − i/R)].
-        let (z0, z1) = ((1.0 - (i + 1) as f64 / rings as f64).max(0.0).sqrt(), (1.0 - i as f64 / rings as f64).sqrt());
+        let (z0, z1) = (
+            (1.0 - (i + 1) as f64 / rings as f64).max(0.0).sqrt(),
+            (1.0 - i as f64 / rings as f64).sqrt(),
+        );
         for j in 0..sectors {
-            let (p0, p1) = (2.0 * PI * j as f64 / sectors as f64, 2.0 * PI * (j + 1) as f64 / sectors as f64);
+            let (p0, p1) = (
+                2.0 * PI * j as f64 / sectors as f64,
+                2.0 * PI * (j + 1) as f64 / sectors as f64,
+            );
             let mut acc = 0.0;
             for a in 0..sub {
-                let (za, zb) = (z0 + (z1 - z0) * a as f64 / sub as f64, z0 + (z1 - z0) * (a + 1) as f64 / sub as f64);
+                let (za, zb) = (
+                    z0 + (z1 - z0) * a as f64 / sub as f64,
+                    z0 + (z1 - z0) * (a + 1) as f64 / sub as f64,
+                );
                 for (z, wz) in gl.on(za, zb) {
                     let r = (1.0 - z * z).max(0.0).sqrt();
                     for c in 0..sub {
-                        let (pa, pb) = (p0 + (p1 - p0) * c as f64 / sub as f64, p0 + (p1 - p0) * (c + 1) as f64 / sub as f64);
+                        let (pa, pb) = (
+                            p0 + (p1 - p0) * c as f64 / sub as f64,
+                            p0 + (p1 - p0) * (c + 1) as f64 / sub as f64,
+                        );
                         for (phi, wp) in gl.on(pa, pb) {
-                            let w = Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
+                            let w =
+                                Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
                             acc += wz * wp * z * f64::from(b.eval_luminance(wi, w));
                         }
                     }
@@ -228,24 +326,47 @@ fn samples_follow_f_cos() {
             let wi = dir(theta, 30.0);
             let probs = cell_probabilities(&*b, wi, rings, sectors);
             for map in [DiskMap::Orthographic, DiskMap::Concentric] {
-                let sampler = QuadtreeSampler::new(&*b, wi, BuildConfig { map, ..BuildConfig::default() }).unwrap();
+                let sampler = QuadtreeSampler::new(
+                    &*b,
+                    wi,
+                    BuildConfig {
+                        map,
+                        ..BuildConfig::default()
+                    },
+                )
+                .unwrap();
                 let mut rng = Pcg64::seed_from_u64(100 * k as u64 + 10 * j as u64 + map as u64);
                 let mut counts = vec![0u64; rings * sectors];
                 let mut trials = 0u64;
                 for _ in 0..m {
-                    let s = sampler.sample(&mut rng).expect("the rejection loop never gives up here");
+                    let s = sampler
+                        .sample(&mut rng)
+                        .expect("the rejection loop never gives up here");
                     counts[cell_of(s.wo, rings, sectors)] += 1;
                     trials += u64::from(s.trials);
                 }
-                assert_eq!(sampler.bound_violations(), 0, "{name} {params:?} {theta}° {map:?}: bound violations");
+                assert_eq!(
+                    sampler.bound_violations(),
+                    0,
+                    "{name} {params:?} {theta}° {map:?}: bound violations"
+                );
                 let (c, dof, z) = chi2(&counts, &probs, m);
                 let mean_trials = trials as f64 / m as f64;
                 let e_t = sampler.stats().expected_trials;
-                assert!((mean_trials - e_t).abs() < 0.02 * e_t + 0.01, "{name} {theta}°: mean trials {mean_trials} vs E[T] {e_t}");
+                assert!(
+                    (mean_trials - e_t).abs() < 0.02 * e_t + 0.01,
+                    "{name} {theta}°: mean trials {mean_trials} vs E[T] {e_t}"
+                );
                 if z > worst.0 {
-                    worst = (z, format!("{name} {params:?} {theta}° {map:?}: chi2 {c:.1} dof {dof}"));
+                    worst = (
+                        z,
+                        format!("{name} {params:?} {theta}° {map:?}: chi2 {c:.1} dof {dof}"),
+                    );
                 }
-                assert!(z < 3.72, "{name} {params:?} θi={theta}° {map:?}: χ² = {c:.1}, dof {dof}, z = {z:.2}");
+                assert!(
+                    z < 3.72,
+                    "{name} {params:?} θi={theta}° {map:?}: χ² = {c:.1}, dof {dof}, z = {z:.2}"
+                );
             }
         }
     }
@@ -269,6 +390,12 @@ fn an_underestimated_bound_is_caught() {
     }
     let (c, dof, z) = chi2(&counts, &probs, m);
     assert!(sampler.bound_violations() > 0);
-    assert!(z > 3.72, "a halved bound went unnoticed by χ²: {c} dof {dof}, z {z}");
-    println!("halved bounds: χ² = {c:.0}, dof {dof}, z = {z:.1}, violations {}", sampler.bound_violations());
+    assert!(
+        z > 3.72,
+        "a halved bound went unnoticed by χ²: {c} dof {dof}, z {z}"
+    );
+    println!(
+        "halved bounds: χ² = {c:.0}, dof {dof}, z = {z:.1}, violations {}",
+        sampler.bound_violations()
+    );
 }

@@ -3,6 +3,7 @@
 
 mod eval;
 mod models;
+mod sample;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -32,6 +33,32 @@ enum Command {
         #[command(flatten)]
         model: ModelArgs,
     },
+    /// Draw N outgoing directions for one incident direction; write N records of four
+    /// little-endian f32 `wo.x wo.y wo.z pdf` (pdf per unit solid angle; a sample lost below
+    /// the horizon is written as four zeros) to --out, and a JSON summary to stdout.
+    Sample {
+        #[command(flatten)]
+        model: ModelArgs,
+        #[command(flatten)]
+        sampler: sample::SamplerArgs,
+        /// Number of samples.
+        #[arg(long)]
+        count: u64,
+        /// RNG seed (PCG64).
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Output file for the binary records.
+        #[arg(long)]
+        out: std::path::PathBuf,
+    },
+    /// The sampler's pdf per unit solid angle: reads `wox woy woz` lines from stdin, prints
+    /// one pdf per line.
+    Pdf {
+        #[command(flatten)]
+        model: ModelArgs,
+        #[command(flatten)]
+        sampler: sample::SamplerArgs,
+    },
 }
 
 /// The model and its parameters, shared by every subcommand that needs a BRDF.
@@ -55,6 +82,8 @@ impl ModelArgs {
 #[derive(Debug)]
 enum CliError {
     Param(brdf_sampling::ParamError),
+    Build(brdf_sampling::quadtree_sampler::BuildError),
+    Usage(String),
     Io(std::io::Error),
     Input { line: u64, message: String },
 }
@@ -63,6 +92,8 @@ impl std::fmt::Display for CliError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Self::Param(e) => write!(f, "{e}"),
+            Self::Build(e) => write!(f, "{e}"),
+            Self::Usage(e) => write!(f, "{e}"),
             Self::Io(e) => write!(f, "i/o error: {e}"),
             Self::Input { line, message } => write!(f, "stdin line {line}: {message}"),
         }
@@ -72,6 +103,12 @@ impl std::fmt::Display for CliError {
 impl From<brdf_sampling::ParamError> for CliError {
     fn from(e: brdf_sampling::ParamError) -> Self {
         Self::Param(e)
+    }
+}
+
+impl From<brdf_sampling::quadtree_sampler::BuildError> for CliError {
+    fn from(e: brdf_sampling::quadtree_sampler::BuildError) -> Self {
+        Self::Build(e)
     }
 }
 
@@ -88,6 +125,20 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Eval { model } => {
             let brdf = model.build()?;
             eval::run(&*brdf, std::io::stdin().lock(), stdout)
+        }
+        Command::Sample {
+            model,
+            sampler,
+            count,
+            seed,
+            out,
+        } => {
+            let brdf = model.build()?;
+            sample::run_sample(&*brdf, &sampler, count, seed, &out, stdout)
+        }
+        Command::Pdf { model, sampler } => {
+            let brdf = model.build()?;
+            sample::run_pdf(&*brdf, &sampler, std::io::stdin().lock(), stdout)
         }
     }
 }

@@ -1,0 +1,260 @@
+//! `brdf sample` and `brdf pdf`: the quadtree (rejection) and the baselines.
+
+use crate::CliError;
+use brdf_sampling::geometry::{unit_direction, unit_direction_above};
+use brdf_sampling::glam::Vec3;
+use brdf_sampling::quadtree_sampler::{
+    Baseline, BaselineSampler, BuildConfig, DirectionSampler, QuadtreeSampler, TreeStats,
+};
+use brdf_sampling::{Brdf, DiskMap};
+use rand_core::SeedableRng;
+use serde_json::{Value, json};
+use std::io::{BufRead, BufWriter, Write};
+use std::time::Instant;
+
+/// Which sampler (`--mode`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum Mode {
+    /// The seed's quadtree with rejection in the leaves (default).
+    Rejection,
+    /// The invertible warp of SPEC §4 (not available yet).
+    Warp,
+    /// Uniform on the hemisphere.
+    Uniform,
+    /// Cosine-weighted.
+    Cosine,
+    /// The model's own sampler (cosine for models without one).
+    Analytic,
+}
+
+/// The map of the quadtree (`--map`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum MapArg {
+    /// The seed's orthographic `Codificador`.
+    Orthographic,
+    /// Shirley–Chiu concentric.
+    Concentric,
+}
+
+/// The sampler options shared by `sample`, `pdf` (and later `test`).
+#[derive(Debug, clap::Args)]
+pub(crate) struct SamplerArgs {
+    /// Incident direction x,y,z in the local frame (normalised; must be above the horizon).
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    wi: String,
+    /// Sampler.
+    #[arg(long, value_enum, default_value_t = Mode::Rejection)]
+    mode: Mode,
+    /// Quadtree map (rejection mode).
+    #[arg(long, value_enum, default_value_t = MapArg::Orthographic)]
+    map: MapArg,
+    /// Refine the quadtree until the expected trials per sample are at most this (rejection).
+    #[arg(long, value_name = "T")]
+    target_trials: Option<f64>,
+}
+
+/// Parses `x,y,z` into a direction (not yet normalised).
+pub(crate) fn parse_vec3(text: &str, what: &str) -> Result<Vec3, CliError> {
+    let parts: Vec<&str> = text.split(',').collect();
+    let nums: Result<Vec<f32>, _> = parts.iter().map(|p| p.trim().parse::<f32>()).collect();
+    match nums {
+        Ok(v) if v.len() == 3 => Ok(Vec3::new(v[0], v[1], v[2])),
+        _ => Err(CliError::Usage(format!(
+            "{what} `{text}`: expected three comma-separated numbers x,y,z"
+        ))),
+    }
+}
+
+/// A built sampler and, for the quadtree, its statistics.
+struct Built<'a> {
+    sampler: Box<dyn DirectionSampler + 'a>,
+    tree: Option<(TreeStats, f64, Box<dyn Fn() -> u64 + 'a>)>,
+    build_seconds: f64,
+}
+
+fn build<'a>(brdf: &'a dyn Brdf, args: &SamplerArgs) -> Result<Built<'a>, CliError> {
+    let wi = unit_direction_above(parse_vec3(&args.wi, "--wi")?)
+        .map_err(|e| CliError::Usage(format!("--wi {}: {e}", args.wi)))?;
+    if brdf.is_delta() {
+        return Err(CliError::Usage(format!(
+            "model `{}` is a Dirac delta: it has no continuous part to sample (its only direction is the mirror of wi)",
+            brdf.name()
+        )));
+    }
+    let t0 = Instant::now();
+    let baseline = |kind| -> Result<Built<'a>, CliError> {
+        Ok(Built {
+            sampler: Box::new(BaselineSampler::new(brdf, wi, kind)?),
+            tree: None,
+            build_seconds: 0.0,
+        })
+    };
+    match args.mode {
+        Mode::Uniform => baseline(Baseline::Uniform),
+        Mode::Cosine => baseline(Baseline::Cosine),
+        Mode::Analytic => baseline(Baseline::Analytic),
+        Mode::Warp => Err(CliError::Usage(
+            "--mode warp is not implemented yet; use rejection, uniform, cosine or analytic".into(),
+        )),
+        Mode::Rejection => {
+            let map = match args.map {
+                MapArg::Orthographic => DiskMap::Orthographic,
+                MapArg::Concentric => DiskMap::Concentric,
+            };
+            let config = BuildConfig {
+                map,
+                target_trials: args.target_trials,
+                ..BuildConfig::default()
+            };
+            let q = std::sync::Arc::new(QuadtreeSampler::new(brdf, wi, config)?);
+            let build_seconds = t0.elapsed().as_secs_f64();
+            let (stats, albedo) = (q.stats(), q.albedo());
+            let q2 = q.clone();
+            Ok(Built {
+                sampler: Box::new(ArcSampler(q)),
+                tree: Some((stats, albedo, Box::new(move || q2.bound_violations()))),
+                build_seconds,
+            })
+        }
+    }
+}
+
+/// Shares one quadtree sampler between the sampling loop and the statistics.
+struct ArcSampler<'a>(std::sync::Arc<QuadtreeSampler<'a, dyn Brdf + 'a>>);
+
+impl DirectionSampler for ArcSampler<'_> {
+    fn name(&self) -> &'static str {
+        "rejection"
+    }
+    fn sample(
+        &self,
+        rng: &mut dyn rand_core::Rng,
+    ) -> Option<brdf_sampling::quadtree_sampler::Sample> {
+        self.0.sample(rng)
+    }
+    fn pdf(&self, wo: Vec3) -> f32 {
+        self.0.pdf(wo)
+    }
+}
+
+pub(crate) fn run_sample(
+    brdf: &dyn Brdf,
+    args: &SamplerArgs,
+    count: u64,
+    seed: u64,
+    out: &std::path::Path,
+    mut stdout: impl Write,
+) -> Result<(), CliError> {
+    let built = build(brdf, args)?;
+    let file = std::fs::File::create(out)
+        .map_err(|e| CliError::Usage(format!("--out {}: {e}", out.display())))?;
+    let mut w = BufWriter::with_capacity(1 << 20, file);
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let t0 = Instant::now();
+    let (mut trials, mut lost, mut weight_sum) = (0u64, 0u64, 0.0f64);
+    for _ in 0..count {
+        let rec = match built.sampler.sample(&mut rng) {
+            Some(s) => {
+                trials += u64::from(s.trials);
+                weight_sum += f64::from(brdf_sampling::geometry::luminance(s.weight));
+                [s.wo.x, s.wo.y, s.wo.z, s.pdf]
+            }
+            None => {
+                trials += 1;
+                lost += 1;
+                [0.0; 4]
+            }
+        };
+        for v in rec {
+            w.write_all(&v.to_le_bytes())?;
+        }
+    }
+    w.flush()?;
+    let sample_seconds = t0.elapsed().as_secs_f64();
+    let n = count.max(1) as f64;
+    let mut summary = json!({
+        "model": brdf.name(),
+        "mode": format!("{:?}", args.mode).to_lowercase(),
+        "count": count,
+        "seed": seed,
+        "build_seconds": built.build_seconds,
+        "sample_seconds": sample_seconds,
+        "mean_trials": trials as f64 / n,
+        "lost": lost,
+        "mean_weight": weight_sum / n,
+    });
+    let obj = summary.as_object_mut().expect("an object");
+    match &built.tree {
+        Some((stats, albedo, violations)) => {
+            obj.insert("albedo".into(), json!(albedo));
+            obj.insert("albedo_method".into(), json!("quadtree volume"));
+            obj.insert("nodes".into(), json!(stats.nodes));
+            obj.insert("leaves".into(), json!(stats.leaves));
+            obj.insert("max_depth".into(), json!(stats.max_depth));
+            obj.insert("expected_trials".into(), json!(stats.expected_trials));
+            obj.insert("bytes".into(), json!(stats.bytes));
+            obj.insert("bound_violations".into(), json!(violations()));
+        }
+        None => {
+            obj.insert("albedo".into(), json!(weight_sum / n));
+            obj.insert("albedo_method".into(), json!("monte carlo (mean weight)"));
+            for k in [
+                "nodes",
+                "leaves",
+                "max_depth",
+                "expected_trials",
+                "bytes",
+                "bound_violations",
+            ] {
+                obj.insert(k.into(), Value::Null);
+            }
+        }
+    }
+    serde_json::to_writer(&mut stdout, &summary).map_err(std::io::Error::from)?;
+    writeln!(stdout)?;
+    Ok(())
+}
+
+pub(crate) fn run_pdf(
+    brdf: &dyn Brdf,
+    args: &SamplerArgs,
+    mut input: impl BufRead,
+    out: impl Write,
+) -> Result<(), CliError> {
+    let built = build(brdf, args)?;
+    let mut out = BufWriter::new(out);
+    let mut fmt = ryu::Buffer::new();
+    let (mut line, mut lineno) = (String::new(), 0u64);
+    loop {
+        line.clear();
+        if input.read_line(&mut line)? == 0 {
+            break;
+        }
+        lineno += 1;
+        let toks: Vec<&str> = line.split_ascii_whitespace().collect();
+        if toks.is_empty() {
+            continue;
+        }
+        let bad = |message: String| CliError::Input {
+            line: lineno,
+            message,
+        };
+        if toks.len() != 3 {
+            return Err(bad(format!(
+                "expected 3 numbers `wox woy woz`, got `{}`",
+                line.trim_end()
+            )));
+        }
+        let mut v = [0.0f32; 3];
+        for (k, t) in toks.iter().enumerate() {
+            v[k] = t
+                .parse()
+                .map_err(|_| bad(format!("`{t}` is not a number")))?;
+        }
+        let wo = unit_direction(Vec3::from_array(v)).map_err(|e| bad(format!("wo: {e}")))?;
+        out.write_all(fmt.format(built.sampler.pdf(wo)).as_bytes())?;
+        out.write_all(b"\n")?;
+    }
+    out.flush()?;
+    Ok(())
+}
