@@ -215,6 +215,36 @@ impl UnitRule {
     }
 }
 
+/// The largest integrand values an integration met, for bounding (every point it evaluates
+/// lies in the node): f itself (with its square point) and f × the chart's Jacobian (with its
+/// chart coordinates: (a, t) orthographic, (α, β) concentric).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Peak {
+    /// Largest f seen.
+    pub f: f64,
+    /// Where (square coordinates).
+    pub p: DVec2,
+    /// Largest f·Jacobian seen.
+    pub fj: f64,
+    /// Where (chart coordinates).
+    pub q: DVec2,
+}
+
+impl Peak {
+    #[inline]
+    fn see(&mut self, f: f64, c: &ChartPoint, q: DVec2) {
+        if f > self.f {
+            self.f = f;
+            self.p = c.p;
+        }
+        let fj = f * c.jacobian;
+        if fj > self.fj {
+            self.fj = fj;
+            self.q = q;
+        }
+    }
+}
+
 /// ∫ f over `rect` ∩ disk with f given per direction (the square measure dx dy), by the map's
 /// chart rule (one application, no adaptivity). `f` returns f_r's luminance.
 pub fn integrate_once(
@@ -223,13 +253,29 @@ pub fn integrate_once(
     rule: &UnitRule,
     f: &impl Fn(DVec3) -> f64,
 ) -> f64 {
+    integrate_once_peak(map, rect, rule, f, &mut Peak::default())
+}
+
+/// [`integrate_once`], also recording the largest values met in `peak`.
+pub fn integrate_once_peak(
+    map: DiskMap,
+    rect: &Rect,
+    rule: &UnitRule,
+    f: &impl Fn(DVec3) -> f64,
+    peak: &mut Peak,
+) -> f64 {
     match map {
-        DiskMap::Orthographic => integrate_angle(rect, rule, f),
-        DiskMap::Concentric => integrate_sine(rect, rule, f),
+        DiskMap::Orthographic => integrate_angle(rect, rule, f, peak),
+        DiskMap::Concentric => integrate_sine(rect, rule, f, peak),
     }
 }
 
-fn integrate_angle(rect: &Rect, rule: &UnitRule, f: &impl Fn(DVec3) -> f64) -> f64 {
+fn integrate_angle(
+    rect: &Rect,
+    rule: &UnitRule,
+    f: &impl Fn(DVec3) -> f64,
+    peak: &mut Peak,
+) -> f64 {
     let (xa, xb) = (rect.min.x.clamp(-1.0, 1.0), rect.max.x.clamp(-1.0, 1.0));
     if xa >= xb {
         return 0.0;
@@ -275,7 +321,9 @@ fn integrate_angle(rect: &Rect, rule: &UnitRule, f: &impl Fn(DVec3) -> f64) -> f
             for (u, wu) in rule.on(0.0, 1.0) {
                 let (t, wt) = remap(t0, t1, r0, r1, u, wu);
                 let q = angle_point(a, t);
-                inner += wt * f(q.w) * q.jacobian;
+                let fv = f(q.w);
+                peak.see(fv, &q, DVec2::new(a, t));
+                inner += wt * fv * q.jacobian;
             }
             total += wa * inner;
         }
@@ -300,12 +348,15 @@ fn remap(x0: f64, x1: f64, s0: bool, s1: bool, u: f64, wu: f64) -> (f64, f64) {
     }
 }
 
-fn integrate_sine(rect: &Rect, rule: &UnitRule, f: &impl Fn(DVec3) -> f64) -> f64 {
+fn integrate_sine(rect: &Rect, rule: &UnitRule, f: &impl Fn(DVec3) -> f64, peak: &mut Peak) -> f64 {
     let s = |x: f64| m::asin(x.clamp(-1.0, 1.0));
     let (al0, al1, be0, be1) = (s(rect.min.x), s(rect.max.x), s(rect.min.y), s(rect.max.y));
+    let peak = core::cell::RefCell::new(peak);
     let h = |al: f64, be: f64| {
         let q = sine_point(al, be);
-        f(q.w) * q.jacobian
+        let fv = f(q.w);
+        peak.borrow_mut().see(fv, &q, DVec2::new(al, be));
+        fv * q.jacobian
     };
     let diag = rect.min.x == rect.min.y && rect.max.x == rect.max.y;
     let anti = rect.min.x == -rect.max.y && rect.max.x == -rect.min.y;
@@ -367,10 +418,24 @@ pub fn integrate_adaptive(
     depth: u32,
     f: &impl Fn(DVec3) -> f64,
 ) -> f64 {
-    let coarse = integrate_once(map, rect, rule, f);
-    refine(map, rect, coarse, rule, tol, depth, f)
+    integrate_adaptive_peak(map, rect, rule, tol, depth, f, &mut Peak::default())
 }
 
+/// [`integrate_adaptive`], also recording the largest values met in `peak`.
+pub fn integrate_adaptive_peak(
+    map: DiskMap,
+    rect: &Rect,
+    rule: &UnitRule,
+    tol: f64,
+    depth: u32,
+    f: &impl Fn(DVec3) -> f64,
+    peak: &mut Peak,
+) -> f64 {
+    let coarse = integrate_once_peak(map, rect, rule, f, peak);
+    refine(map, rect, coarse, rule, tol, depth, f, peak)
+}
+
+#[allow(clippy::too_many_arguments)]
 fn refine(
     map: DiskMap,
     rect: &Rect,
@@ -379,9 +444,10 @@ fn refine(
     tol: f64,
     depth: u32,
     f: &impl Fn(DVec3) -> f64,
+    peak: &mut Peak,
 ) -> f64 {
     let quads = rect.quadrants();
-    let parts = quads.map(|q| integrate_once(map, &q, rule, f));
+    let parts = quads.map(|q| integrate_once_peak(map, &q, rule, f, peak));
     let fine: f64 = parts.iter().sum();
     if depth == 0 || (fine - coarse).abs() <= tol {
         return fine;
@@ -389,7 +455,7 @@ fn refine(
     quads
         .iter()
         .zip(parts)
-        .map(|(q, c)| refine(map, q, c, rule, 0.5 * tol, depth - 1, f))
+        .map(|(q, c)| refine(map, q, c, rule, 0.5 * tol, depth - 1, f, peak))
         .sum()
 }
 
@@ -438,7 +504,7 @@ impl Proposal {
                 if a0 < 0.0 && a1 > 0.0 {
                     consider(0.0);
                 }
-                if !(tlo < thi) {
+                if tlo.is_nan() || thi.is_nan() || tlo >= thi {
                     (tlo, thi) = (-FRAC_PI_2, FRAC_PI_2);
                 }
                 Self {

@@ -41,7 +41,7 @@ pub struct BuildConfig {
     pub node_budget: u32,
     /// Refine further, greedily by wasted volume, until the expected number of rejection
     /// trials per sample is at most this (SPEC §3). Default `None`: the seed's rule, whose
-    /// bound E[T] ≤ 1/`split_threshold` is always enforced.
+    /// bound E\[T\] ≤ 1/`split_threshold` is always enforced.
     pub target_trials: Option<f64>,
     /// Bounds are the largest value found (dense grid, peak hints, local search) times this.
     /// Default 1.02.
@@ -51,7 +51,7 @@ pub struct BuildConfig {
     /// The breadth-first pass does not split a node whose wasted volume (box − v1) is below
     /// this fraction of the total volume: without it, leaves on the disk's rim, whose P never
     /// reaches ½, would split until the budget runs out (the seed's endless recursion).
-    /// E[T] ≤ 1/`split_threshold` is then restored by splitting the most wasteful leaves
+    /// E\[T\] ≤ 1/`split_threshold` is then restored by splitting the most wasteful leaves
     /// first. Default 1e-3.
     pub min_relative_waste: f64,
     /// Evaluate the nodes of a level in parallel (feature `rayon`). The tree is bit-identical
@@ -118,10 +118,10 @@ impl BuildConfig {
                 self.node_budget
             ));
         }
-        if let Some(t) = self.target_trials {
-            if !(t >= 1.0) {
-                return bad(format!("target_trials = {t} must be at least 1"));
-            }
+        if let Some(t) = self.target_trials
+            && (t.is_nan() || t < 1.0)
+        {
+            return bad(format!("target_trials = {t} must be at least 1"));
         }
         if !(self.bound_safety >= 1.0 && self.bound_safety.is_finite()) {
             return bad(format!(

@@ -4,7 +4,7 @@
 use crate::config::BuildConfig;
 use crate::error::BuildError;
 use crate::sampler::{QuadtreeSampler, Sample, uniform_f32};
-use brdf_core::geometry::{luminance, mirror, unit_direction};
+use brdf_core::geometry::{above_horizon, luminance, mirror, unit_direction};
 use brdf_core::{Brdf, BrdfSample, DirectionError, DiskMap, Frame};
 use glam::{Vec2, Vec3};
 use rand_core::Rng;
@@ -29,7 +29,7 @@ impl Encoder {
     /// From a world incident direction and a given frame (normal and tangent).
     pub fn from_frame(wi: Vec3, frame: Frame, map: DiskMap) -> Result<Self, DirectionError> {
         let wi_local = frame.to_local(unit_direction(wi)?);
-        if !(wi_local.z > 0.0) {
+        if !above_horizon(wi_local) {
             return Err(DirectionError::BelowHorizon);
         }
         Ok(Self {

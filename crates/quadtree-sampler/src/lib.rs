@@ -27,7 +27,7 @@
 //! - **This quadtree** adapts its resolution to f, so a 10⁵-exponent lobe costs nodes only
 //!   where the lobe is; rejection inside the leaves makes the density ∝ f·cos *exactly*
 //!   wherever the bound holds (and counts every violation), at the price of a random number of
-//!   trials (E[T] ≤ 2 with the seed's rule, tunable by the target-trials mode) and of
+//!   trials (E\[T\] ≤ 2 with the seed's rule, tunable by the target-trials mode) and of
 //!   discontinuity: it cannot warp stratified points.
 //!
 //! Beyond the seed, for exactness: node integrals use charts in which the disk's rim is a
@@ -62,6 +62,7 @@ mod encoder;
 mod error;
 mod sampler;
 mod tree;
+mod warp;
 
 pub use brdf_core;
 pub use config::{BuildConfig, IntegrationRule};
@@ -72,3 +73,4 @@ pub use sampler::{
     uniform_f64, weight_luminance,
 };
 pub use tree::{LEAF, Node, Quadtree, TreeStats, albedo_of_volume};
+pub use warp::{DEFAULT_MIX, WarpSampler};

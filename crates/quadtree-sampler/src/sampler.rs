@@ -138,7 +138,7 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
         albedo_of_volume(self.config.map, self.tree.volume())
     }
 
-    /// Tree counts and E[T].
+    /// Tree counts and E\[T\].
     #[must_use]
     pub fn stats(&self) -> TreeStats {
         self.tree.stats()
@@ -168,8 +168,8 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
             let total: f64 = (c..c + 4).map(|k| nodes[k].v1).sum();
             let mut target = u * total;
             let mut pick = None;
-            for k in c..c + 4 {
-                let v = nodes[k].v1;
+            for (k, node) in nodes.iter().enumerate().skip(c).take(4) {
+                let v = node.v1;
                 if v > 0.0 {
                     pick = Some(k);
                     if target < v {

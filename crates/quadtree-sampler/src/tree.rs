@@ -1,7 +1,9 @@
 //! The arena quadtree (seed §2.1, Fig. 1–2): nodes, the split (`particionar`) and the
 //! target-trials refinement.
 
-use crate::chart::{Chart, Proposal, Rect, UnitRule, integrate_adaptive};
+use crate::chart::{
+    Chart, Peak, Proposal, Rect, UnitRule, integrate_adaptive, integrate_adaptive_peak,
+};
 use crate::config::{BuildConfig, IntegrationRule};
 use crate::error::BuildError;
 use alloc::collections::BinaryHeap;
@@ -87,7 +89,8 @@ fn rim_arc_points(rect: &Rect) -> Vec<f64> {
     for y in [rect.min.y, rect.max.y] {
         if y.abs() <= 1.0 {
             let a = m::asin(y);
-            cuts.extend([a.rem_euclid(TAU), (PI - a).rem_euclid(TAU)]);
+            // a ∈ [−π/2, π/2] and π − a ∈ [π/2, 3π/2]: only a may need wrapping into [0, 2π).
+            cuts.extend([if a < 0.0 { a + TAU } else { a }, PI - a]);
         }
     }
     cuts.sort_unstable_by(f64::total_cmp);
@@ -212,13 +215,15 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         let f = |w: DVec3| self.f(w);
         let coarse = crate::chart::integrate_once(map, rect, &self.rule, &f);
         let tol = (self.config.integration_tolerance * coarse.abs()).max(self.tol_floor);
-        let v1 = integrate_adaptive(
+        let mut peak = Peak::default();
+        let v1 = integrate_adaptive_peak(
             map,
             rect,
             &self.rule,
             tol,
             u32::from(self.config.integration_depth),
             &f,
+            &mut peak,
         )
         .max(0.0);
         // A bound below the node's mean height is certainly wrong (a peak between the points
@@ -228,7 +233,13 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         } else {
             0.0
         };
-        let mut found = self.bound(&prop, rect);
+        // The integration refined itself into every sharp feature of the node: its largest
+        // value (in the proposal's chart) is a bound candidate and a search seed.
+        let seed = match prop.chart {
+            Chart::Square => (peak.f, peak.p),
+            Chart::Angle | Chart::Sine => (peak.fj, peak.q),
+        };
+        let mut found = self.bound(&prop, rect, seed);
         if let Some(RimProbe::Bounded(limit)) = rim_peak {
             found = found.max(limit * self.config.bound_safety);
         }
@@ -247,7 +258,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
     /// M: the largest h found on a dense grid (edges and corners included), at the peak hints
     /// inside the node, and by a compass search from the best of those, times the safety
     /// factor (SPEC §3).
-    fn bound(&self, prop: &Proposal, rect: &Rect) -> f64 {
+    fn bound(&self, prop: &Proposal, rect: &Rect, seed: (f64, DVec2)) -> f64 {
         let map = self.config.map;
         let g = usize::from(self.config.bound_grid);
         let (lo, hi) = (prop.lo, prop.hi);
@@ -281,6 +292,9 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
                 consider(self.height(prop, rect, q), q);
             }
         }
+        consider(seed.0, seed.1.clamp(lo, hi));
+        // Peak hints: inside the node, or projected onto its closest point (a lobe peaked just
+        // outside is largest on the near edge).
         for w in &self.hints {
             let p = match map {
                 DiskMap::Orthographic => DVec2::new(w.x, w.y),
@@ -288,10 +302,12 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
                     brdf_core::maps::disk_to_square_concentric(w.truncate().as_vec2()).as_dvec2()
                 }
             };
-            if rect.contains(p) {
-                let q = prop.coordinates(map, *w).clamp(lo, hi);
-                consider(self.height(prop, rect, q), q);
-            }
+            let pc = p.clamp(rect.min, rect.max - (rect.max - rect.min) * 1e-9);
+            let Some(wc) = crate::chart::square_direction(map, pc) else {
+                continue;
+            };
+            let q = prop.coordinates(map, wc).clamp(lo, hi);
+            consider(self.height(prop, rect, q), q);
         }
         let mut max = best[0].0.max(0.0);
         for &(h0, q0) in &best {
@@ -303,9 +319,9 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
     }
 
     /// Looks at f along the node's own arc of the rim (nine points on each arc inside the
-    /// node), at heights z = 1e-6 and 1e-10 above it. If f still grows between them (Ward's
-    /// 1/√z grows 100-fold) it is unbounded there; otherwise the largest value seen is its
-    /// limit at the rim.
+    /// node), at heights z = 1e-5 and 1e-9 above it. If f still grows between them (Ward's
+    /// 1/√z, even under a diffuse term) it is treated as unbounded; otherwise the largest
+    /// value seen is its limit at the rim.
     fn rim_probe(&self, rect: &Rect) -> Option<RimProbe> {
         let mut limit: f64 = 0.0;
         for phi in rim_arc_points(rect) {
@@ -314,8 +330,10 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
                 let r = m::sqrt((1.0 - z) * (1.0 + z));
                 self.f(DVec3::new(r * c, r * s, z))
             };
-            let (near, nearer) = (at(1e-6), at(1e-10));
-            if nearer > 1.5 * near && nearer > 0.0 {
+            // z = 1e-9 is below the smallest height a sample can have (f64 positions give
+            // z ≳ 1e-8); any growth toward it means f is still climbing there: unbounded.
+            let (near, nearer) = (at(1e-5), at(1e-9));
+            if nearer > near * (1.0 + 1e-3) && nearer > 0.0 {
                 return Some(RimProbe::Unbounded);
             }
             limit = limit.max(near).max(nearer);
@@ -383,7 +401,7 @@ pub struct TreeStats {
     pub depth_histogram: Vec<usize>,
     /// Bytes of the node arena.
     pub bytes: usize,
-    /// E[T] = Σ box volumes / Σ v1 over live leaves: expected rejection trials per sample.
+    /// E\[T\] = Σ box volumes / Σ v1 over live leaves: expected rejection trials per sample.
     pub expected_trials: f64,
     /// Whether the node budget stopped a split.
     pub budget_exhausted: bool,
@@ -400,7 +418,7 @@ pub struct Quadtree {
 impl Quadtree {
     /// Builds the tree of f_r(wi, ·) (`wi` local, above the horizon), splitting every node
     /// whose P is below the threshold (`particionar`), then, in target mode, refining the
-    /// leaves with the largest wasted volume until E[T] ≤ target.
+    /// leaves with the largest wasted volume until E\[T\] ≤ target.
     pub(crate) fn build<B: Brdf + ?Sized>(ctx: &Context<'_, B>) -> Result<Self, BuildError> {
         ctx.config.validate()?;
         if ctx.brdf.is_delta() {
@@ -498,7 +516,7 @@ impl Quadtree {
     }
 
     /// SPEC §3's target mode: split, in batches, the live leaves with the largest reducible
-    /// wasted volume (box/safety − v1: the safety factor's share cannot be split away) until E[T] ≤ target, the budget is spent, or no leaf can split.
+    /// wasted volume (box/safety − v1: the safety factor's share cannot be split away) until E\[T\] ≤ target, the budget is spent, or no leaf can split.
     fn refine_to_target<B: Brdf + ?Sized>(&mut self, ctx: &Context<'_, B>, target: f64) {
         #[derive(PartialEq)]
         struct Waste(f64, u32);
@@ -615,7 +633,7 @@ impl Quadtree {
         }
     }
 
-    /// Counts: nodes, leaves, depths, bytes, E[T].
+    /// Counts: nodes, leaves, depths, bytes, E\[T\].
     #[must_use]
     pub fn stats(&self) -> TreeStats {
         let mut s = TreeStats {

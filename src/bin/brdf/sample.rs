@@ -4,7 +4,8 @@ use crate::CliError;
 use brdf_sampling::geometry::{unit_direction, unit_direction_above};
 use brdf_sampling::glam::Vec3;
 use brdf_sampling::quadtree_sampler::{
-    Baseline, BaselineSampler, BuildConfig, DirectionSampler, QuadtreeSampler, TreeStats,
+    Baseline, BaselineSampler, BuildConfig, DEFAULT_MIX, DirectionSampler, QuadtreeSampler,
+    TreeStats, WarpSampler,
 };
 use brdf_sampling::{Brdf, DiskMap};
 use rand_core::SeedableRng;
@@ -17,7 +18,7 @@ use std::time::Instant;
 pub(crate) enum Mode {
     /// The seed's quadtree with rejection in the leaves (default).
     Rejection,
-    /// The invertible warp of SPEC §4 (not available yet).
+    /// The invertible warp of SPEC §4 over the concentric-map tree (no rejection loop).
     Warp,
     /// Uniform on the hemisphere.
     Uniform,
@@ -65,10 +66,14 @@ pub(crate) fn parse_vec3(text: &str, what: &str) -> Result<Vec3, CliError> {
     }
 }
 
+/// Reads the rejection sampler's bound-violation count after sampling.
+type ViolationCounter<'a> = Box<dyn Fn() -> u64 + 'a>;
+
 /// A built sampler and, for the quadtree, its statistics.
 struct Built<'a> {
     sampler: Box<dyn DirectionSampler + 'a>,
-    tree: Option<(TreeStats, f64, Box<dyn Fn() -> u64 + 'a>)>,
+    /// Tree statistics, albedo, and (rejection only) the bound-violation counter.
+    tree: Option<(TreeStats, f64, Option<ViolationCounter<'a>>)>,
     build_seconds: f64,
 }
 
@@ -93,9 +98,20 @@ fn build<'a>(brdf: &'a dyn Brdf, args: &SamplerArgs) -> Result<Built<'a>, CliErr
         Mode::Uniform => baseline(Baseline::Uniform),
         Mode::Cosine => baseline(Baseline::Cosine),
         Mode::Analytic => baseline(Baseline::Analytic),
-        Mode::Warp => Err(CliError::Usage(
-            "--mode warp is not implemented yet; use rejection, uniform, cosine or analytic".into(),
-        )),
+        Mode::Warp => {
+            let config = BuildConfig {
+                target_trials: args.target_trials,
+                ..BuildConfig::default()
+            };
+            let w = WarpSampler::new(brdf, wi, config, DEFAULT_MIX)?;
+            let build_seconds = t0.elapsed().as_secs_f64();
+            let (stats, albedo) = (w.stats(), w.albedo());
+            Ok(Built {
+                sampler: Box::new(w),
+                tree: Some((stats, albedo, None)),
+                build_seconds,
+            })
+        }
         Mode::Rejection => {
             let map = match args.map {
                 MapArg::Orthographic => DiskMap::Orthographic,
@@ -112,7 +128,7 @@ fn build<'a>(brdf: &'a dyn Brdf, args: &SamplerArgs) -> Result<Built<'a>, CliErr
             let q2 = q.clone();
             Ok(Built {
                 sampler: Box::new(ArcSampler(q)),
-                tree: Some((stats, albedo, Box::new(move || q2.bound_violations()))),
+                tree: Some((stats, albedo, Some(Box::new(move || q2.bound_violations())))),
                 build_seconds,
             })
         }
@@ -191,9 +207,17 @@ pub(crate) fn run_sample(
             obj.insert("nodes".into(), json!(stats.nodes));
             obj.insert("leaves".into(), json!(stats.leaves));
             obj.insert("max_depth".into(), json!(stats.max_depth));
-            obj.insert("expected_trials".into(), json!(stats.expected_trials));
             obj.insert("bytes".into(), json!(stats.bytes));
-            obj.insert("bound_violations".into(), json!(violations()));
+            match violations {
+                Some(v) => {
+                    obj.insert("expected_trials".into(), json!(stats.expected_trials));
+                    obj.insert("bound_violations".into(), json!(v()));
+                }
+                None => {
+                    obj.insert("expected_trials".into(), Value::Null);
+                    obj.insert("bound_violations".into(), Value::Null);
+                }
+            }
         }
         None => {
             obj.insert("albedo".into(), json!(weight_sum / n));

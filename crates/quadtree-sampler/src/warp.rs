@@ -1,0 +1,233 @@
+//! SPEC §4's warp mode: a deterministic, invertible map from [0,1)² to the hemisphere that
+//! follows the quadtree without a rejection loop, so stratified and low-discrepancy points stay
+//! well distributed.
+//!
+//! The tree is built over the concentric map (no wasted corners). Each node gets the
+//! probability q = (1 − ε)·v1/V + ε·(area/4): the tree's density mixed defensively with the
+//! uniform density on the square — which is cosine sampling on the hemisphere — so the pdf is
+//! positive wherever f·cos θ is. A point descends from the root choosing the column, then the
+//! row, of the children by rescaling u.x and u.y (hierarchical warping), and lands uniformly in
+//! the leaf: the density is piecewise constant on the square, known exactly, and f·cos/pdf is
+//! an unbiased estimator weight. [`WarpSampler::invert`] undoes the map.
+
+use crate::config::BuildConfig;
+use crate::error::BuildError;
+use crate::sampler::{DirectionSampler, Sample, uniform_f64};
+use crate::tree::{Context, Quadtree, TreeStats, albedo_of_volume};
+use alloc::vec::Vec;
+use brdf_core::geometry::{above_horizon, unit_direction_above};
+use brdf_core::{Brdf, DiskMap};
+use glam::{DVec2, Vec2, Vec3};
+use rand_core::Rng;
+
+/// Default defensive mixing weight ε of the cosine-like uniform component.
+pub const DEFAULT_MIX: f64 = 0.05;
+
+/// The warp sampler of one incident direction (see the module doc).
+#[derive(Debug)]
+pub struct WarpSampler<'a, B: Brdf + ?Sized> {
+    brdf: &'a B,
+    wi: Vec3,
+    tree: Quadtree,
+    /// q per node (sums over children to the parent; 1 at the root).
+    q: Vec<f64>,
+    mix: f64,
+    volume: f64,
+}
+
+impl<'a, B: Brdf + ?Sized> WarpSampler<'a, B> {
+    /// Builds the tree of f_r(wi, ·) over the concentric map (whatever `config.map` says) and
+    /// the warp's node probabilities, with defensive weight `mix` ∈ (0, 1].
+    pub fn new(brdf: &'a B, wi: Vec3, config: BuildConfig, mix: f64) -> Result<Self, BuildError> {
+        if !(mix > 0.0 && mix <= 1.0) {
+            return Err(BuildError::Config {
+                message: alloc::format!("warp mix = {mix} must be in (0, 1]"),
+            });
+        }
+        let wi = unit_direction_above(wi)?;
+        let config = BuildConfig {
+            map: DiskMap::Concentric,
+            ..config
+        };
+        let tree = Quadtree::build(&Context::new(brdf, wi, config))?;
+        let volume = tree.volume();
+        // A tree with no volume (f ≡ 0) is warped by the uniform component alone.
+        let mix = if volume > 0.0 { mix } else { 1.0 };
+        let q = tree
+            .nodes()
+            .iter()
+            .map(|n| {
+                let area = f64::from(n.size) * f64::from(n.size) / 4.0;
+                let t = if volume > 0.0 { n.v1 / volume } else { 0.0 };
+                (1.0 - mix) * t + mix * area
+            })
+            .collect();
+        Ok(Self {
+            brdf,
+            wi,
+            tree,
+            q,
+            mix,
+            volume,
+        })
+    }
+
+    /// The tree (concentric map).
+    #[must_use]
+    pub fn tree(&self) -> &Quadtree {
+        &self.tree
+    }
+
+    /// Tree counts (E\[T\] is not used by the warp).
+    #[must_use]
+    pub fn stats(&self) -> TreeStats {
+        self.tree.stats()
+    }
+
+    /// The defensive mixing weight in use.
+    #[must_use]
+    pub fn mix(&self) -> f64 {
+        self.mix
+    }
+
+    /// ρ(wi) of Y(f_r) from the tree's volume.
+    #[must_use]
+    pub fn albedo(&self) -> f64 {
+        albedo_of_volume(DiskMap::Concentric, self.volume)
+    }
+
+    /// [0,1)² → (square point, leaf index).
+    #[must_use]
+    pub fn warp_to_square(&self, u: DVec2) -> (DVec2, usize) {
+        let nodes = self.tree.nodes();
+        let mut u = u.clamp(DVec2::ZERO, DVec2::splat(1.0 - f64::EPSILON));
+        let mut i = 0;
+        while !nodes[i].is_leaf() {
+            let c = nodes[i].first_child as usize;
+            let q = [self.q[c], self.q[c + 1], self.q[c + 2], self.q[c + 3]];
+            let (left, right) = (q[0] + q[2], q[1] + q[3]);
+            let col = split(&mut u.x, left, right);
+            let row = split(&mut u.y, q[col], q[col + 2]);
+            i = c + col + 2 * row;
+        }
+        let n = &nodes[i];
+        let p = DVec2::new(f64::from(n.x), f64::from(n.y)) + u * f64::from(n.size);
+        (p, i)
+    }
+
+    /// The inverse of [`WarpSampler::warp_to_square`]: a square point → its u.
+    #[must_use]
+    pub fn square_to_warp(&self, p: DVec2) -> DVec2 {
+        let nodes = self.tree.nodes();
+        // Walk down by position, remembering each level's (offset, scale) per axis.
+        let mut steps: Vec<(f64, f64, f64, f64)> = Vec::new();
+        let mut i = 0;
+        while !nodes[i].is_leaf() {
+            let n = &nodes[i];
+            let c = n.first_child as usize;
+            let h = 0.5 * f64::from(n.size);
+            let col = usize::from(p.x >= f64::from(n.x) + h);
+            let row = usize::from(p.y >= f64::from(n.y) + h);
+            let q = [self.q[c], self.q[c + 1], self.q[c + 2], self.q[c + 3]];
+            let (left, right) = (q[0] + q[2], q[1] + q[3]);
+            let (ox, sx) = if col == 0 {
+                (0.0, left / (left + right))
+            } else {
+                (left / (left + right), right / (left + right))
+            };
+            let (b, t) = (q[col], q[col + 2]);
+            let (oy, sy) = if row == 0 {
+                (0.0, b / (b + t))
+            } else {
+                (b / (b + t), t / (b + t))
+            };
+            steps.push((ox, sx, oy, sy));
+            i = c + col + 2 * row;
+        }
+        let n = &nodes[i];
+        let mut u = (p - DVec2::new(f64::from(n.x), f64::from(n.y))) / f64::from(n.size);
+        for &(ox, sx, oy, sy) in steps.iter().rev() {
+            u = DVec2::new(ox + sx * u.x, oy + sy * u.y);
+        }
+        u
+    }
+
+    /// The density per unit square area of the warp at leaf `i`: q_i / s_i².
+    fn square_pdf(&self, leaf: usize) -> f64 {
+        let s = f64::from(self.tree.nodes()[leaf].size);
+        self.q[leaf] / (s * s)
+    }
+
+    /// The direction for uniforms `u` ∈ [0,1)², with its pdf per unit solid angle, f and the
+    /// weight f·cos/pdf. `None` only on the horizon itself (cos θ = 0).
+    #[must_use]
+    pub fn sample_warp(&self, u: Vec2) -> Option<Sample> {
+        let (p, leaf) = self.warp_to_square(u.as_dvec2());
+        let w = crate::chart::square_direction(DiskMap::Concentric, p)?;
+        let wo = w.as_vec3().normalize();
+        if !above_horizon(wo) {
+            return None;
+        }
+        let pdf = self.pdf_at(leaf, wo);
+        let f = self.brdf.eval(self.wi, wo);
+        Some(Sample {
+            wo,
+            pdf,
+            f,
+            weight: f * (wo.z / pdf),
+            delta: false,
+            trials: 1,
+        })
+    }
+
+    fn pdf_at(&self, leaf: usize, wo: Vec3) -> f32 {
+        let j = f64::from(DiskMap::Concentric.square_area_per_projected_solid_angle());
+        (self.square_pdf(leaf) * j * f64::from(wo.z)) as f32
+    }
+
+    /// The warp's density at `wo` (local), per unit solid angle.
+    #[must_use]
+    pub fn pdf(&self, wo: Vec3) -> f32 {
+        if !above_horizon(wo) {
+            return 0.0;
+        }
+        let p = DiskMap::Concentric.direction_to_square(wo).as_dvec2();
+        self.pdf_at(self.tree.leaf_at(p), wo)
+    }
+
+    /// The uniforms that [`WarpSampler::sample_warp`] maps to `wo`.
+    #[must_use]
+    pub fn invert(&self, wo: Vec3) -> Vec2 {
+        self.square_to_warp(DiskMap::Concentric.direction_to_square(wo).as_dvec2())
+            .as_vec2()
+    }
+}
+
+/// Chooses the first (0) or second (1) part with probabilities ∝ (a, b) using `u`, and
+/// rescales `u` to [0, 1) within the chosen part.
+#[inline]
+fn split(u: &mut f64, a: f64, b: f64) -> usize {
+    let pa = a / (a + b);
+    if *u < pa {
+        *u = (*u / pa).min(1.0 - f64::EPSILON);
+        0
+    } else {
+        *u = ((*u - pa) / (1.0 - pa)).clamp(0.0, 1.0 - f64::EPSILON);
+        1
+    }
+}
+
+impl<B: Brdf + ?Sized> DirectionSampler for WarpSampler<'_, B> {
+    fn name(&self) -> &'static str {
+        "warp"
+    }
+
+    fn sample(&self, rng: &mut dyn Rng) -> Option<Sample> {
+        let u = DVec2::new(uniform_f64(rng), uniform_f64(rng));
+        self.sample_warp(u.as_vec2())
+    }
+
+    fn pdf(&self, wo: Vec3) -> f32 {
+        WarpSampler::pdf(self, wo)
+    }
+}
