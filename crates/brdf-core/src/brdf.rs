@@ -146,17 +146,45 @@ pub trait Brdf: Send + Sync + fmt::Debug {
         PeakHints::mirror_and_normal(wi)
     }
 
-    /// Whether [`Brdf::sample`] is a model-specific importance sampler. When false, `sample`
-    /// and `pdf` are plain cosine-weighted sampling (the baseline of MODELS.md).
+    /// Whether [`Brdf::sample_continuous`] is a model-specific importance sampler. When false,
+    /// the continuous part is sampled cosine-weighted (the baseline of MODELS.md).
     fn has_analytic_sampler(&self) -> bool {
         false
     }
 
-    /// Draws `wo` given `wi` from the model's own sampler: `uc` chooses a lobe, `u` places the
-    /// direction in it. Returns `None` when the drawn direction falls below the horizon (the
-    /// estimator then scores 0; nothing is re-drawn) or `wi` is not above the horizon.
-    /// The default is cosine-weighted sampling.
-    fn sample(&self, wi: Vec3, uc: f32, u: Vec2) -> Option<BrdfSample> {
+    /// A cheap estimate of the continuous part's directional albedo ∫ f_r cos θo dωo at `wi`,
+    /// used only to choose between the delta and the continuous part in [`Brdf::sample`] (any
+    /// positive value keeps sampling unbiased; a good one lowers variance). The default,
+    /// 1 − luminance of the delta reflectance, suits an energy-conserving model.
+    fn continuous_albedo_hint(&self, wi: Vec3) -> f32 {
+        (1.0 - luminance(self.delta_reflectance(wi))).max(0.0)
+    }
+
+    /// The probability with which [`Brdf::sample`] picks the delta lobe for `wi`: 0 without a
+    /// delta part, 1 for a pure delta model, else the delta reflectance's share of the luminance
+    /// against [`Brdf::continuous_albedo_hint`], kept within [0.05, 0.95] so that neither part
+    /// is starved.
+    fn delta_probability(&self, wi: Vec3) -> f32 {
+        if !above_horizon(wi) {
+            return 0.0;
+        }
+        if self.is_delta() {
+            return 1.0;
+        }
+        let d = luminance(self.delta_reflectance(wi));
+        if d.is_nan() || d <= 0.0 {
+            return 0.0;
+        }
+        let c = self.continuous_albedo_hint(wi);
+        let c = if c.is_nan() { 0.0 } else { c.max(0.0) };
+        (d / (d + c)).clamp(0.05, 0.95)
+    }
+
+    /// Draws `wo` from the continuous part alone: `uc` chooses a lobe, `u` places the
+    /// direction in it. The returned `pdf` is [`Brdf::pdf_continuous`]. `None` when the drawn
+    /// direction falls below the horizon (the estimator then scores 0; nothing is re-drawn) or
+    /// `wi` is not above the horizon. The default is cosine-weighted sampling.
+    fn sample_continuous(&self, wi: Vec3, uc: f32, u: Vec2) -> Option<BrdfSample> {
         let _ = uc;
         if !above_horizon(wi) {
             return None;
@@ -165,13 +193,47 @@ pub trait Brdf: Send + Sync + fmt::Debug {
         BrdfSample::continuous(wo, self.eval(wi, wo), cosine_hemisphere_pdf(wo.z))
     }
 
-    /// The density with which [`Brdf::sample`] draws `wo` given `wi`, **per unit solid angle**
-    /// (continuous part only: 0 for a pure delta model). Agrees with the `pdf` of the samples.
-    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
-        if !above_horizon(wi) {
+    /// The density of [`Brdf::sample_continuous`], **per unit solid angle**.
+    fn pdf_continuous(&self, wi: Vec3, wo: Vec3) -> f32 {
+        if !above_horizon(wi) || !above_horizon(wo) {
             return 0.0;
         }
         cosine_hemisphere_pdf(wo.z)
+    }
+
+    /// Draws `wo` given `wi` from the whole model: with probability
+    /// [`Brdf::delta_probability`] the delta lobe toward r(wi) (a delta sample), otherwise the
+    /// continuous part ([`Brdf::sample_continuous`], `uc` rescaled), whose pdf is then scaled
+    /// by the probability of having chosen it. `None` below the horizon, as there.
+    fn sample(&self, wi: Vec3, uc: f32, u: Vec2) -> Option<BrdfSample> {
+        if !above_horizon(wi) {
+            return None;
+        }
+        let p = self.delta_probability(wi);
+        if p <= 0.0 {
+            return self.sample_continuous(wi, uc, u);
+        }
+        if uc < p || p >= 1.0 {
+            let wi = wi.normalize();
+            return BrdfSample::delta(mirror(wi), self.delta_reflectance(wi), p);
+        }
+        let uc = ((uc - p) / (1.0 - p)).min(1.0 - f32::EPSILON / 2.0);
+        let s = self.sample_continuous(wi, uc, u)?;
+        BrdfSample::continuous(s.wo, s.f, s.pdf * (1.0 - p))
+    }
+
+    /// The density with which [`Brdf::sample`] draws `wo` given `wi` as a continuous sample,
+    /// **per unit solid angle**: (1 − [`Brdf::delta_probability`]) · [`Brdf::pdf_continuous`]
+    /// (0 for a pure delta model). Agrees with the `pdf` of the continuous samples.
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        let p = self.delta_probability(wi);
+        if p <= 0.0 {
+            self.pdf_continuous(wi, wo)
+        } else if p >= 1.0 {
+            0.0
+        } else {
+            (1.0 - p) * self.pdf_continuous(wi, wo)
+        }
     }
 
     /// [`Brdf::eval`] with its inputs checked: NaN, infinite and zero-length directions are

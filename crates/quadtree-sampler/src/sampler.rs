@@ -271,7 +271,8 @@ pub enum Baseline {
     Uniform,
     /// Cosine-weighted, pdf cos θ/π.
     Cosine,
-    /// The model's own sampler (`Brdf::sample`; cosine for models without one).
+    /// The model's own sampler of its continuous part (`Brdf::sample_continuous`; cosine for
+    /// models without one).
     Analytic,
 }
 
@@ -298,7 +299,10 @@ impl<'a, B: Brdf + ?Sized> BaselineSampler<'a, B> {
         let uc = uniform_f32(rng);
         let u = Vec2::new(uniform_f32(rng), uniform_f32(rng));
         match self.kind {
-            Baseline::Analytic => self.brdf.sample(self.wi, uc, u).map(Sample::from),
+            Baseline::Analytic => self
+                .brdf
+                .sample_continuous(self.wi, uc, u)
+                .map(Sample::from),
             Baseline::Uniform | Baseline::Cosine => {
                 let wo = match self.kind {
                     Baseline::Uniform => brdf_core::warp::sample_uniform_hemisphere(u),
@@ -319,7 +323,7 @@ impl<'a, B: Brdf + ?Sized> BaselineSampler<'a, B> {
         match self.kind {
             Baseline::Uniform => brdf_core::warp::uniform_hemisphere_pdf(),
             Baseline::Cosine => brdf_core::warp::cosine_hemisphere_pdf(wo.z),
-            Baseline::Analytic => self.brdf.pdf(self.wi, wo),
+            Baseline::Analytic => self.brdf.pdf_continuous(self.wi, wo),
         }
     }
 }

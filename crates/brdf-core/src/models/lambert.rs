@@ -56,7 +56,7 @@ impl Brdf for Lambert {
         true
     }
 
-    fn sample(&self, wi: Vec3, _uc: f32, u: Vec2) -> Option<BrdfSample> {
+    fn sample_continuous(&self, wi: Vec3, _uc: f32, u: Vec2) -> Option<BrdfSample> {
         if !above_horizon(wi) {
             return None;
         }
@@ -64,7 +64,7 @@ impl Brdf for Lambert {
         BrdfSample::continuous(wo, self.eval(wi, wo), cosine_hemisphere_pdf(wo.z))
     }
 
-    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+    fn pdf_continuous(&self, wi: Vec3, wo: Vec3) -> f32 {
         if upper_pair(wi, wo).is_none() {
             return 0.0;
         }

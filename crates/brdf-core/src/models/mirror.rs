@@ -1,8 +1,8 @@
-use crate::brdf::{Brdf, BrdfSample, PeakHints};
+use crate::brdf::{Brdf, PeakHints};
 use crate::error::ParamError;
 use crate::geometry::{above_horizon, mirror};
 use crate::param::{ParamSet, ParamSpec, ParamValue};
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 
 /// `mirror`: the perfect specular reflector, a Dirac delta toward r(wi) (MODELS.md §2).
 /// `eval` and `pdf` of any explicit pair are 0; `sample` returns r(wi) exactly, flagged delta,
@@ -72,14 +72,5 @@ impl Brdf for Mirror {
 
     fn has_analytic_sampler(&self) -> bool {
         true
-    }
-
-    fn sample(&self, wi: Vec3, _uc: f32, _u: Vec2) -> Option<BrdfSample> {
-        let wi = wi.try_normalize()?;
-        BrdfSample::delta(mirror(wi), self.delta_reflectance(wi), 1.0)
-    }
-
-    fn pdf(&self, _wi: Vec3, _wo: Vec3) -> f32 {
-        0.0
     }
 }

@@ -54,7 +54,7 @@ pub(crate) fn sample_mixture<B: Brdf + ?Sized>(
     } else {
         lobe(u)?
     };
-    BrdfSample::continuous(wo, brdf.eval(wi, wo), brdf.pdf(wi, wo))
+    BrdfSample::continuous(wo, brdf.eval(wi, wo), brdf.pdf_continuous(wi, wo))
 }
 
 /// The f64 unit pair for a pdf evaluation (wi above the horizon, wo above it), else `None`.

@@ -102,13 +102,13 @@ impl Brdf for Ward {
         true
     }
 
-    fn sample(&self, wi: Vec3, uc: f32, u: Vec2) -> Option<BrdfSample> {
+    fn sample_continuous(&self, wi: Vec3, uc: f32, u: Vec2) -> Option<BrdfSample> {
         sample_mixture(self, wi, uc, u, self.p_diffuse, |u| {
             reflect_about_half(wi, self.lobe.sample_h(u))
         })
     }
 
-    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+    fn pdf_continuous(&self, wi: Vec3, wo: Vec3) -> f32 {
         let Some((wi, wo)) = pdf_pair(wi, wo) else {
             return 0.0;
         };
