@@ -41,12 +41,16 @@ fn models_json_lists_every_model_with_parameters() {
         "blinn-phong",
         "lewis-phong",
         "cook-torrance",
+        "htsg",
+        "poulin-fournier",
         "oren-nayar",
         "ward",
         "schlick",
+        "strauss",
     ] {
         assert!(names.contains(&want), "{want} missing from {names:?}");
     }
+    assert_eq!(names.len(), 12, "MODELS.md has twelve models: {names:?}");
     let phong = models.iter().find(|m| m["name"] == "phong").unwrap();
     let n = phong["params"]
         .as_array()
@@ -96,6 +100,27 @@ const SETS: &[(&str, &[&str])] = &[
     ("schlick", &[]),
     ("schlick", &["r=0.01", "p=0.05", "c=0.9"]),
     ("schlick", &["r=1", "p=0.5"]),
+    ("htsg", &[]),
+    ("htsg", &["sigma0=0.0318", "tau=0.3"]),
+    ("htsg", &["sigma0=1", "tau=3", "a=0.1"]),
+    ("htsg", &["sigma0=0.05", "tau=1", "kappa=0", "eta=1.5"]),
+    ("poulin-fournier", &[]),
+    (
+        "poulin-fournier",
+        &["height=0.4", "gap=1.5", "kd=0.3", "ks=0.6", "n=1000"],
+    ),
+    ("poulin-fournier", &["kd=1", "ks=0", "n=0"]),
+    ("strauss", &[]),
+    (
+        "strauss",
+        &[
+            "smoothness=0.8",
+            "metalness=0.5",
+            "transparency=0.2",
+            "color=0.6",
+        ],
+    ),
+    ("strauss", &["smoothness=0", "metalness=1"]),
 ];
 
 /// Random direction pairs, a quarter of each direction grazing (z in [1e-6, 1e-2]), some on

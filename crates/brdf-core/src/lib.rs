@@ -41,6 +41,7 @@ pub mod models;
 pub mod param;
 pub mod quadrature;
 pub mod registry;
+pub mod special;
 pub mod warp;
 
 pub use brdf::{Brdf, BrdfSample, PeakHints};

@@ -11,7 +11,8 @@
 use crate::brdf::Brdf;
 use crate::error::ParamError;
 use crate::models::{
-    BlinnPhong, CookTorrance, Lambert, LewisPhong, Mirror, OrenNayar, Phong, Schlick, Ward,
+    BlinnPhong, CookTorrance, Htsg, Lambert, LewisPhong, Mirror, OrenNayar, Phong, PoulinFournier,
+    Schlick, Strauss, Ward,
 };
 use crate::param::{ParamSet, ParamSpec};
 use alloc::boxed::Box;
@@ -84,6 +85,9 @@ fn boxed<B: Brdf + 'static>(b: Result<B, ParamError>) -> Result<Box<dyn Brdf>, P
     b.map(|b| Box::new(b) as Box<dyn Brdf>)
 }
 
+/// Why HTSG is not listed as energy-conserving (see the energy test).
+const ENERGY_HTSG: &str = "TBD";
+
 static MODELS: &[ModelInfo] = &[
     ModelInfo {
         name: "lambert",
@@ -148,6 +152,26 @@ static MODELS: &[ModelInfo] = &[
         build: |p| boxed(CookTorrance::from_params(p)),
     },
     ModelInfo {
+        name: "htsg",
+        summary: "He, Torrance, Sillion & Greenberg (1991), physical optics: directional-diffuse series plus a specular delta",
+        params: Htsg::PARAMS,
+        reciprocal: true,
+        energy: Energy::NotConserving(ENERGY_HTSG),
+        analytic_sampler: false,
+        delta: false,
+        build: |p| boxed(Htsg::from_params(p)),
+    },
+    ModelInfo {
+        name: "poulin-fournier",
+        summary: "Poulin & Fournier (1990), parallel raised cylinders with a local Lewis-Phong BRDF",
+        params: PoulinFournier::PARAMS,
+        reciprocal: true,
+        energy: Energy::Conserving,
+        analytic_sampler: false,
+        delta: false,
+        build: |p| boxed(PoulinFournier::from_params(p)),
+    },
+    ModelInfo {
         name: "oren-nayar",
         summary: "Oren & Nayar (1994), rough diffuse surfaces, full model with inter-reflection",
         params: OrenNayar::PARAMS,
@@ -176,6 +200,18 @@ static MODELS: &[ModelInfo] = &[
         analytic_sampler: true,
         delta: false,
         build: |p| boxed(Schlick::from_params(p)),
+    },
+    ModelInfo {
+        name: "strauss",
+        summary: "Strauss (1990), artist-oriented smoothness/metalness model in radiometric BRDF form",
+        params: Strauss::PARAMS,
+        reciprocal: false,
+        energy: Energy::NotConserving(
+            "the specular term's 1/cos(theta_i) grows without bound at grazing incidence",
+        ),
+        analytic_sampler: true,
+        delta: false,
+        build: |p| boxed(Strauss::from_params(p)),
     },
 ];
 

@@ -2,22 +2,28 @@
 
 mod blinn_phong;
 mod cook_torrance;
+mod htsg;
 mod lambert;
 mod lewis_phong;
 mod mirror;
 mod oren_nayar;
 mod phong;
+mod poulin_fournier;
 mod schlick;
+mod strauss;
 mod ward;
 
 pub use blinn_phong::BlinnPhong;
 pub use cook_torrance::CookTorrance;
+pub use htsg::{HTSG_SERIES_LIMIT, Htsg, conductor_fresnel, htsg_sum};
 pub use lambert::Lambert;
 pub use lewis_phong::LewisPhong;
 pub use mirror::Mirror;
 pub use oren_nayar::OrenNayar;
 pub use phong::Phong;
+pub use poulin_fournier::{PoulinFournier, Visible};
 pub use schlick::Schlick;
+pub use strauss::{Strauss, strauss_fresnel, strauss_shadow};
 pub use ward::Ward;
 
 use crate::brdf::{Brdf, BrdfSample};

@@ -1,0 +1,397 @@
+use crate::brdf::Brdf;
+use crate::error::ParamError;
+use crate::geometry::{above_horizon, luminance, upper_pair};
+use crate::math as m;
+use crate::param::{ParamSet, ParamSpec, ParamValue};
+use crate::special::{erfc, lambert_w0, ln_gamma};
+use core::f64::consts::{FRAC_1_PI, PI};
+use glam::{DVec3, Vec3};
+
+/// √π.
+const SQRT_PI: f64 = 1.772_453_850_905_516;
+
+/// Above this g the Poisson series is replaced by its second-order expansion (MODELS.md §7).
+pub const HTSG_SERIES_LIMIT: f64 = 300.0;
+
+/// ln of the relative size below which the series' remaining terms are dropped.
+const LN_REL_TOL: f64 = -36.841_361_487_904_73; // ln(1e-16)
+
+/// ln of the absolute size below which a sum no longer matters: D carries a prefactor of at
+/// most π²τ²/(4λ²) ≈ 6.2e5 and f is reported in f32, whose smallest subnormal is e^-103.4.
+const LN_ABS_TOL: f64 = -200.0;
+
+/// `htsg`: He, Torrance, Sillion & Greenberg (1991), the physically based model of a rough
+/// conductor or dielectric as MODELS.md §7 fixes it: effective roughness σ(θi, θo) from
+/// Lambert W, the Poisson series of the directional-diffuse distribution (second-order
+/// expansion past g = 300), the simplified geometry factor, Smith-type shadowing with the
+/// e^{−a²} term the printed Eq. 25 drops, conductor Fresnel at the local angle, plus a
+/// uniform-diffuse term a/π.
+///
+/// The **specular** part ρs(θi) = F(cos θi)·e^{−gs}·S(θi)² is a Dirac delta toward r(wi):
+/// [`Brdf::eval`] excludes it, [`Brdf::delta_reflectance`] reports it, and
+/// [`Brdf::sample`] chooses it by luminance against an estimate of the continuous albedo.
+/// The continuous part has no analytic sampler (cosine sampling is its baseline; the quadtree
+/// is the reason this model is here). Reciprocal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Htsg {
+    sigma0: f32,
+    tau: f32,
+    lambda: Vec3,
+    eta: Vec3,
+    kappa: Vec3,
+    a: Vec3,
+}
+
+/// The per-pair quantities shared by the three channels.
+struct Geometry {
+    /// Effective roughness σ(θi, θo).
+    sigma: f64,
+    /// cos θi + cos θo.
+    vz: f64,
+    /// |wi.xy + wo.xy|².
+    vxy2: f64,
+}
+
+impl Htsg {
+    /// The model's parameters (lengths in µm; only their ratios matter).
+    pub const PARAMS: &'static [ParamSpec] = &[
+        ParamSpec::scalar("sigma0", 0.18, 0.001, 10.0, "RMS surface height (um)"),
+        ParamSpec::scalar(
+            "tau",
+            3.0,
+            0.05,
+            100.0,
+            "surface autocorrelation length (um)",
+        ),
+        ParamSpec::rgb(
+            "lambda",
+            [0.645, 0.526, 0.444],
+            0.2,
+            2.0,
+            "wavelength per channel (um)",
+        ),
+        ParamSpec::rgb(
+            "eta",
+            [1.3211, 0.88045, 0.59765],
+            0.01,
+            10.0,
+            "refractive index per channel (default: aluminium)",
+        ),
+        ParamSpec::rgb(
+            "kappa",
+            [7.41785, 6.1455, 5.2337],
+            0.0,
+            20.0,
+            "extinction coefficient per channel (0 = dielectric)",
+        ),
+        ParamSpec::rgb("a", [0.0; 3], 0.0, 1.0, "uniform-diffuse albedo"),
+    ];
+
+    /// An HTSG BRDF; every value must lie in its range ([`Htsg::PARAMS`]).
+    pub fn new(
+        sigma0: f32,
+        tau: f32,
+        lambda: Vec3,
+        eta: Vec3,
+        kappa: Vec3,
+        a: Vec3,
+    ) -> Result<Self, ParamError> {
+        Ok(Self {
+            sigma0: Self::PARAMS[0].check_scalar(sigma0)?,
+            tau: Self::PARAMS[1].check_scalar(tau)?,
+            lambda: Self::PARAMS[2].check_rgb(lambda)?,
+            eta: Self::PARAMS[3].check_rgb(eta)?,
+            kappa: Self::PARAMS[4].check_rgb(kappa)?,
+            a: Self::PARAMS[5].check_rgb(a)?,
+        })
+    }
+
+    /// Builds from a validated parameter set.
+    pub fn from_params(p: &ParamSet) -> Result<Self, ParamError> {
+        Self::new(
+            p.scalar("sigma0")?,
+            p.scalar("tau")?,
+            p.rgb("lambda")?,
+            p.rgb("eta")?,
+            p.rgb("kappa")?,
+            p.rgb("a")?,
+        )
+    }
+
+    fn s0(&self) -> f64 {
+        f64::from(self.sigma0)
+    }
+
+    fn t0(&self) -> f64 {
+        f64::from(self.tau)
+    }
+
+    /// K(θ) = tan θ · erfc(τ / (2σ0 tan θ)), 0 when tan θ < 1e-6.
+    fn k_term(&self, w: DVec3) -> f64 {
+        let tan = m::sqrt(w.x * w.x + w.y * w.y) / w.z;
+        if tan < 1e-6 {
+            return 0.0;
+        }
+        tan * erfc(self.t0() / (2.0 * self.s0() * tan))
+    }
+
+    /// The effective roughness σ(θi, θo) = σ0 / √(1 + W0(f0²)), f0 = (K(θi) + K(θo))/√(8π).
+    #[must_use]
+    pub fn effective_roughness(&self, wi: DVec3, wo: DVec3) -> f64 {
+        let f0 = (self.k_term(wi) + self.k_term(wo)) / m::sqrt(8.0 * PI);
+        self.s0() / m::sqrt(1.0 + lambert_w0(f0 * f0))
+    }
+
+    /// Smith-type shadowing S(θ) with a = τ cot θ / (2σ0): (1 − ½erfc a)/(Λ(a) + 1),
+    /// Λ(a) = ½(e^{−a²}/(a√π) − erfc a); 1 at the normal, 0 at the horizon.
+    #[must_use]
+    pub fn shadowing(&self, w: DVec3) -> f64 {
+        let sin = m::sqrt(w.x * w.x + w.y * w.y);
+        if w.z <= 0.0 {
+            return 0.0;
+        }
+        if sin <= 0.0 {
+            return 1.0;
+        }
+        let a = self.t0() * w.z / (2.0 * self.s0() * sin);
+        let ec = erfc(a);
+        let lambda = 0.5 * (m::exp(-a * a) / (a * SQRT_PI) - ec);
+        ((1.0 - 0.5 * ec) / (lambda + 1.0)).clamp(0.0, 1.0)
+    }
+
+    fn geometry(&self, wi: DVec3, wo: DVec3) -> Geometry {
+        let (sx, sy) = (wi.x + wo.x, wi.y + wo.y);
+        Geometry {
+            sigma: self.effective_roughness(wi, wo),
+            vz: wi.z + wo.z,
+            vxy2: sx * sx + sy * sy,
+        }
+    }
+
+    /// The directional-diffuse distribution D for one wavelength (the sum, times its
+    /// prefactor π²τ²/(4λ²)).
+    fn distribution(&self, geo: &Geometry, lambda: f64) -> f64 {
+        let t = 2.0 * PI * geo.sigma * geo.vz / lambda;
+        let g = t * t;
+        let tl = self.t0() / lambda;
+        let a = PI * PI * tl * tl * geo.vxy2;
+        PI * PI * tl * tl * 0.25 * htsg_sum(g, a)
+    }
+
+    /// The per-channel Fresnel reflectance of the conductor at local cosine `c`.
+    fn fresnel(&self, c: f64) -> DVec3 {
+        let (e, k) = (self.eta.as_dvec3(), self.kappa.as_dvec3());
+        DVec3::new(
+            conductor_fresnel(c, e.x, k.x),
+            conductor_fresnel(c, e.y, k.y),
+            conductor_fresnel(c, e.z, k.z),
+        )
+    }
+
+    fn specular(&self, wi: DVec3) -> DVec3 {
+        let sigma = self.effective_roughness(wi, wi);
+        let s = self.shadowing(wi);
+        let f = self.fresnel(wi.z);
+        let l = self.lambda.as_dvec3();
+        let gs = |lambda: f64| {
+            let t = 4.0 * PI * sigma * wi.z / lambda;
+            m::exp(-t * t)
+        };
+        f * DVec3::new(gs(l.x), gs(l.y), gs(l.z)) * (s * s)
+    }
+}
+
+/// Unpolarised Fresnel reflectance of a conductor (η, κ) at incidence cosine `c`
+/// (MODELS.md §7, step 6); 1 for c < 1e-7.
+#[must_use]
+pub fn conductor_fresnel(c: f64, eta: f64, kappa: f64) -> f64 {
+    if c < 1e-7 {
+        return 1.0;
+    }
+    let c = c.min(1.0);
+    let s2 = 1.0 - c * c;
+    let (s, t) = (m::sqrt(s2), m::sqrt(s2) / c);
+    let b = eta * eta - kappa * kappa - s2;
+    let q = m::sqrt(b * b + 4.0 * eta * eta * kappa * kappa);
+    let a2 = 0.5 * (q + b);
+    let b2 = 0.5 * (q - b);
+    let a = m::sqrt(a2.max(0.0));
+    let fs = (a2 + b2 - 2.0 * a * c + c * c) / (a2 + b2 + 2.0 * a * c + c * c);
+    let fp =
+        fs * (a2 + b2 - 2.0 * a * s * t + s2 * t * t) / (a2 + b2 + 2.0 * a * s * t + s2 * t * t);
+    0.5 * (fs + fp)
+}
+
+/// Σ_{m≥1} g^m e^{−g}/m! · e^{−A/m}/m, the sum in HTSG's D (MODELS.md §7, step 3).
+///
+/// For g ≤ [`HTSG_SERIES_LIMIT`] the exact series, in log space, from where the Poisson
+/// weights become non-negligible (g − 10√g − 10), with a rigorous stopping rule: past the
+/// Poisson mode every later term is below the Poisson tail, which is bounded geometrically,
+/// and the loop stops once that bound is below 1e-16 of the sum (or below e^−200 absolutely,
+/// where the result no longer shows in f32). Beyond the limit, the second-order expansion
+/// h(g) + (g/2)·h''(g), h(μ) = e^{−A/μ}/μ. 0 when g = 0.
+#[must_use]
+pub fn htsg_sum(g: f64, a: f64) -> f64 {
+    if g.is_nan() || g <= 0.0 || a.is_nan() {
+        return 0.0;
+    }
+    if g > HTSG_SERIES_LIMIT {
+        let e = m::exp(-a / g);
+        let (g2, g3) = (g * g, g * g * g);
+        return e / g + 0.5 * g * e * (2.0 / g3 - 4.0 * a / (g3 * g) + a * a / (g3 * g2));
+    }
+    let ln_g = m::ln(g);
+    let start = (g - 10.0 * m::sqrt(g) - 10.0).floor().max(1.0);
+    let mut k = start;
+    // ln of the Poisson weight g^k e^{-g} / k!
+    let mut ln_pois = k * ln_g - g - ln_gamma(k + 1.0);
+    let mut ln_max = f64::NEG_INFINITY;
+    let mut sum = 0.0; // Σ exp(L_k − ln_max)
+    for _ in 0..100_000 {
+        let ln_k = m::ln(k);
+        let lt = ln_pois - ln_k - a / k;
+        if lt > ln_max {
+            sum = sum * m::exp(ln_max - lt) + 1.0;
+            ln_max = lt;
+        } else {
+            sum += m::exp(lt - ln_max);
+        }
+        // Next Poisson weight; past the mode the tail Σ_{j>k} is at most
+        // pois_{k+1} / (1 − g/(k+2)).
+        ln_pois += ln_g - m::ln(k + 1.0);
+        k += 1.0;
+        if k > g + 1.0 {
+            let ln_tail = ln_pois - m::ln(1.0 - g / (k + 1.0));
+            let ln_total = ln_max + m::ln(sum);
+            if ln_tail < (ln_total + LN_REL_TOL).max(LN_ABS_TOL) {
+                break;
+            }
+        }
+    }
+    m::exp(ln_max) * sum
+}
+
+impl Brdf for Htsg {
+    fn name(&self) -> &'static str {
+        "htsg"
+    }
+
+    fn params(&self) -> ParamSet {
+        ParamSet::from_checked(
+            self.name(),
+            Self::PARAMS,
+            &[
+                ParamValue::Scalar(self.sigma0),
+                ParamValue::Scalar(self.tau),
+                ParamValue::Rgb(self.lambda),
+                ParamValue::Rgb(self.eta),
+                ParamValue::Rgb(self.kappa),
+                ParamValue::Rgb(self.a),
+            ],
+        )
+    }
+
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Vec3 {
+        let Some((wi, wo)) = upper_pair(wi, wo) else {
+            return Vec3::ZERO;
+        };
+        let geo = self.geometry(wi, wo);
+        let c = wi.dot(wo);
+        let gf = (2.0 + 2.0 * c) / geo.vz;
+        let g = gf * gf;
+        let s = self.shadowing(wi) * self.shadowing(wo);
+        let common = g * s * FRAC_1_PI / (wi.z * wo.z);
+        let l = self.lambda.as_dvec3();
+        let d = DVec3::new(
+            self.distribution(&geo, l.x),
+            self.distribution(&geo, l.y),
+            self.distribution(&geo, l.z),
+        );
+        let f = self.fresnel(m::sqrt((0.5 * (1.0 + c)).max(0.0)));
+        (f * d * common + self.a.as_dvec3() * FRAC_1_PI).as_vec3()
+    }
+
+    fn delta_reflectance(&self, wi: Vec3) -> Vec3 {
+        if !above_horizon(wi) {
+            return Vec3::ZERO;
+        }
+        self.specular(wi.as_dvec3().normalize()).as_vec3()
+    }
+
+    /// F(cos θi)·S(θi)²·(1 − e^{−gs}) + a: the energy the specular delta loses to roughness
+    /// goes, to first order, to the directional-diffuse lobe.
+    fn continuous_albedo_hint(&self, wi: Vec3) -> f32 {
+        if !above_horizon(wi) {
+            return 0.0;
+        }
+        let wi = wi.as_dvec3().normalize();
+        let s = self.shadowing(wi);
+        let total = self.fresnel(wi.z) * (s * s);
+        luminance((total - self.specular(wi)).max(DVec3::ZERO).as_vec3()) + luminance(self.a)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn alu(sigma0: f32, tau: f32) -> Htsg {
+        Htsg::new(
+            sigma0,
+            tau,
+            Vec3::splat(0.526),
+            Vec3::splat(0.88045),
+            Vec3::splat(6.1455),
+            Vec3::ZERO,
+        )
+        .unwrap()
+    }
+
+    fn dir(theta_deg: f64, phi_deg: f64) -> Vec3 {
+        let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
+        DVec3::new(m::sin(t) * m::cos(p), m::sin(t) * m::sin(p), m::cos(t)).as_vec3()
+    }
+
+    fn close(got: f32, want: f64, rel: f64) -> bool {
+        (f64::from(got) - want).abs() <= rel * want
+    }
+
+    #[test]
+    fn oracles_of_models_md() {
+        let b = alu(0.18, 3.0);
+        for (ti, to, dp, want) in [
+            (30.0, 30.0, 180.0, 7.3129),
+            (30.0, 40.0, 180.0, 4.5318),
+            (10.0, 20.0, 0.0, 0.050_643),
+        ] {
+            let got = b.eval(dir(ti, 0.0), dir(to, dp)).y;
+            assert!(
+                close(got, want, 1e-4),
+                "f({ti},{to},{dp}) = {got}, want {want}"
+            );
+        }
+        for (t, want) in [(60.0, 0.008_841), (80.0, 0.475_99)] {
+            let got = b.delta_reflectance(dir(t, 0.0)).y;
+            assert!(close(got, want, 1e-4), "rho_s({t}) = {got}, want {want}");
+        }
+        let b = alu(0.0318, 0.3);
+        for (t, want) in [(0.0, 0.513_61), (30.0, 0.592_88), (60.0, 0.779_06)] {
+            let got = b.delta_reflectance(dir(t, 0.0)).y;
+            assert!(
+                close(got, want, 1e-4),
+                "smooth rho_s({t}) = {got}, want {want}"
+            );
+        }
+        for (ti, to, dp, want) in [
+            (30.0, 30.0, 180.0, 0.293_62),
+            (45.0, 45.0, 135.0, 0.116_35),
+            (60.0, 30.0, 90.0, 0.027_011),
+        ] {
+            let got = b.eval(dir(ti, 0.0), dir(to, dp)).y;
+            assert!(
+                close(got, want, 1e-4),
+                "smooth f({ti},{to},{dp}) = {got}, want {want}"
+            );
+        }
+    }
+}
