@@ -259,28 +259,26 @@ fn htsg(p: &dyn Fn(&str) -> f64, wi: V, wo: V) -> f64 {
 
 /// Adaptive Simpson on [a, b] to a relative tolerance (of a 33-point first estimate).
 fn simpson(f: &dyn Fn(f64) -> f64, a: f64, b: f64, rel: f64) -> f64 {
+    /// One panel [a, b] with f at a, the midpoint and b, its Simpson value `whole`.
     fn rec(
         f: &dyn Fn(f64) -> f64,
-        a: f64,
-        b: f64,
-        fa: f64,
-        fm: f64,
-        fb: f64,
+        ab: [f64; 2],
+        fs: [f64; 3],
         whole: f64,
         tol: f64,
         depth: u32,
     ) -> f64 {
+        let ([a, b], [fa, fm, fb]) = (ab, fs);
         let m = 0.5 * (a + b);
-        let (lm, rm) = (0.5 * (a + m), 0.5 * (m + b));
-        let (flm, frm) = (f(lm), f(rm));
+        let (flm, frm) = (f(0.5 * (a + m)), f(0.5 * (m + b)));
         let left = (m - a) / 6.0 * (fa + 4.0 * flm + fm);
         let right = (b - m) / 6.0 * (fm + 4.0 * frm + fb);
         let diff = left + right - whole;
         if depth == 0 || (diff.abs() <= 15.0 * tol && depth < 36) {
             return left + right + diff / 15.0;
         }
-        rec(f, a, m, fa, flm, fm, left, tol / 2.0, depth - 1)
-            + rec(f, m, b, fm, frm, fb, right, tol / 2.0, depth - 1)
+        rec(f, [a, m], [fa, flm, fm], left, tol / 2.0, depth - 1)
+            + rec(f, [m, b], [fm, frm, fb], right, tol / 2.0, depth - 1)
     }
     let scale: f64 = (0..=32)
         .map(|k| f(a + (b - a) * f64::from(k) / 32.0).abs())
@@ -290,7 +288,7 @@ fn simpson(f: &dyn Fn(f64) -> f64, a: f64, b: f64, rel: f64) -> f64 {
     let tol = (rel * scale).max(1e-300);
     let (fa, fm, fb) = (f(a), f(0.5 * (a + b)), f(b));
     let whole = (b - a) / 6.0 * (fa + 4.0 * fm + fb);
-    rec(f, a, b, fa, fm, fb, whole, tol, 40)
+    rec(f, [a, b], [fa, fm, fb], whole, tol, 40)
 }
 
 /// Whether the 2D ray from `p` toward (dy, dz) hits the material of a cylinder centred at

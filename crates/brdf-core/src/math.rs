@@ -39,4 +39,6 @@ backend! {
     asin(x): f64 => asin, asin;
     atan2f(y, x): f32 => atan2, atan2f;
     atan2(y, x): f64 => atan2, atan2;
+    floor(x): f64 => floor, floor;
+    ceil(x): f64 => ceil, ceil;
 }

@@ -27,9 +27,15 @@ fn build(name: &str, params: &[&str]) -> Box<dyn Brdf> {
     registry::create(name, params.iter().copied()).unwrap_or_else(|e| panic!("{name}: {e}"))
 }
 
-/// Luminance directional albedo by independent quadrature.
+/// Luminance directional albedo by independent quadrature: 96 × 384 panels of 6 × 6 points,
+/// 40 × 160 for the two models whose eval integrates or sums internally (µs per eval; their
+/// lobes in these tests are broad, so the coarser grid is still accurate to ~1e-6).
 fn albedo(b: &dyn Brdf, wi: Vec3) -> f64 {
-    luminance(directional_albedo(b, wi, 96, 6).as_vec3()) as f64
+    let panels = match b.name() {
+        "htsg" | "poulin-fournier" => 40,
+        _ => 96,
+    };
+    luminance(directional_albedo(b, wi, panels, 6).as_vec3()) as f64
 }
 
 mod values {
@@ -195,6 +201,35 @@ mod values {
     }
 
     #[test]
+    fn strauss() {
+        check(
+            "strauss",
+            &[],
+            &cases([
+                0.268_685_743,
+                0.277_140_929_3,
+                0.223_016_938,
+                0.520_700_664_2,
+            ]),
+        );
+        check(
+            "strauss",
+            &[
+                "smoothness=0.8",
+                "metalness=0.5",
+                "transparency=0.2",
+                "color=0.6",
+            ],
+            &cases([
+                0.160_513_278_3,
+                0.112_679_653_6,
+                0.044_736_725_82,
+                0.678_678_513_3,
+            ]),
+        );
+    }
+
+    #[test]
     fn schlick() {
         check(
             "schlick",
@@ -342,6 +377,45 @@ mod albedo {
         );
     }
 
+    #[test]
+    fn poulin_fournier_lambert_local_albedo() {
+        // MODELS.md §8: h = 1, d = 0, Lambert local kd = 1: 0.802 for wi in the x–z plane.
+        check(
+            "poulin-fournier",
+            &["kd=1", "ks=0", "n=0"],
+            &[
+                (0., 0.802, 1e-3),
+                (30., 0.802, 1e-3),
+                (60., 0.802, 1e-3),
+                (85., 0.802, 1e-3),
+            ],
+        );
+    }
+
+    /// HTSG with a = 0: the directional-diffuse albedo plus the specular delta's reflectance
+    /// stays below 1 on these sets (the registry still says "not conserving": nothing in the
+    /// model bounds it, and a/π is added on top).
+    #[test]
+    fn htsg_total_albedo_with_a_zero() {
+        for params in [
+            &[][..],
+            &["sigma0=0.0318", "tau=0.3"],
+            &["sigma0=1", "tau=3"],
+            &["sigma0=0.05", "tau=1", "kappa=0", "eta=1.5"],
+            &["sigma0=2", "tau=2", "lambda=0.3"],
+        ] {
+            let b = build("htsg", params);
+            for ti in [0., 30., 60., 80., 89.] {
+                let wi = dir(ti, 20.);
+                let total = albedo(&*b, wi) + f64::from(luminance(b.delta_reflectance(wi)));
+                assert!(
+                    total <= 1.0,
+                    "htsg {params:?} θi={ti}: total albedo {total}"
+                );
+            }
+        }
+    }
+
     /// Energy conservation where the registry claims it, over a grid of parameters and angles.
     #[test]
     fn conserving_models_never_exceed_one() {
@@ -354,6 +428,15 @@ mod albedo {
             ("blinn-phong", &["kd=0", "ks=1", "n=100"]),
             ("cook-torrance", &["m=1", "f0=0.999", "kd=0"]),
             ("cook-torrance", &["m=0.2", "f0=0.999", "kd=0"]),
+            ("poulin-fournier", &["kd=1", "ks=0"]),
+            (
+                "poulin-fournier",
+                &["kd=0", "ks=1", "n=10", "height=0.5", "gap=0.5"],
+            ),
+            (
+                "poulin-fournier",
+                &["kd=0.5", "ks=0.5", "n=300", "height=0.2", "gap=3"],
+            ),
         ];
         for (name, params) in sets {
             let info = registry::find(name).unwrap();
@@ -455,8 +538,10 @@ mod properties {
                 prop_assert!((s.wo.length() - 1.0).abs() < 1e-5 && s.wo.z > 0.0);
                 prop_assert!(s.pdf > 0.0 && s.pdf.is_finite());
                 if s.delta {
-                    prop_assert!(b.is_delta());
+                    let p = b.delta_probability(wi);
+                    prop_assert!(p > 0.0 && s.pdf == p);
                     prop_assert!((s.wo - brdf_core::geometry::mirror(wi.normalize())).length() < 1e-6);
+                    prop_assert_eq!(s.weight, b.delta_reflectance(wi.normalize()) / p);
                 } else {
                     prop_assert_eq!(s.pdf, b.pdf(wi, s.wo));
                     prop_assert_eq!(s.f, b.eval(wi, s.wo));
@@ -486,10 +571,16 @@ mod samplers {
         ("ward", &["alpha_x=0.05", "alpha_y=0.2"]),
         ("schlick", &[]),
         ("schlick", &["r=0.02", "p=0.2"]),
+        ("htsg", &[]),
+        ("htsg", &["sigma0=0.0318", "tau=0.3"]),
+        ("poulin-fournier", &[]),
+        ("strauss", &[]),
+        ("strauss", &["smoothness=0.9", "metalness=1"]),
     ];
 
-    /// Mean estimator weight ≈ ∫ f cos dω (independent quadrature) within 4 standard errors
-    /// (two-sided α ≈ 6e-5 per check; fixed seeds make the outcome deterministic anyway).
+    /// Mean estimator weight ≈ ∫ f cos dω (independent quadrature) plus the delta part's
+    /// reflectance, within 4 standard errors (two-sided α ≈ 6e-5 per check; fixed seeds make
+    /// the outcome deterministic anyway).
     #[test]
     fn mean_weight_matches_albedo() {
         let n = 200_000;
@@ -498,11 +589,15 @@ mod samplers {
             for (j, ti) in [0.0, 45.0, 80.0].into_iter().enumerate() {
                 let wi = dir(ti, 30.0);
                 let mut rng = Pcg64::seed_from_u64(1000 + 10 * k as u64 + j as u64);
-                let (mut s1, mut s2, mut hits) = (0.0f64, 0.0f64, 0usize);
+                let (mut s1, mut s2, mut hits, mut deltas) = (0.0f64, 0.0f64, 0usize, 0usize);
                 for _ in 0..n {
                     let u = Vec2::new(rng.random(), rng.random());
                     let w = b.sample(wi, rng.random(), u).map_or(0.0, |s| {
-                        hits += 1;
+                        if s.delta {
+                            deltas += 1;
+                        } else {
+                            hits += 1;
+                        }
                         f64::from(luminance(s.weight))
                     });
                     s1 += w;
@@ -510,13 +605,27 @@ mod samplers {
                 }
                 let mean = s1 / n as f64;
                 let se = ((s2 / n as f64 - mean * mean).max(0.0) / n as f64).sqrt();
-                let a = albedo(&*b, wi);
+                let a = albedo(&*b, wi) + f64::from(luminance(b.delta_reflectance(wi)));
+                // The delta lobe is chosen with its stated probability.
+                let p = f64::from(b.delta_probability(wi));
+                let fd = deltas as f64 / n as f64;
+                assert!(
+                    (fd - p).abs() <= 4.0 * (p * (1.0 - p) / n as f64).sqrt() + 1e-9,
+                    "{name} θi={ti}: delta fraction {fd} vs probability {p}"
+                );
                 assert!(
                     (mean - a).abs() <= 4.0 * se + 1e-4 * a,
                     "{name} {params:?} θi={ti}: mean weight {mean:.5} ± {se:.5} vs albedo {a:.5}"
                 );
                 // The pdf's mass over the upper hemisphere is the fraction of samples kept.
-                let mass = hemisphere_integral(96, 6, |wo| f64::from(b.pdf(wi, wo)));
+                let p_delta = b.delta_probability(wi);
+                let mass = hemisphere_integral(96, 6, |wo| {
+                    f64::from(if p_delta > 0.0 {
+                        (1.0 - p_delta) * b.pdf_continuous(wi, wo)
+                    } else {
+                        b.pdf(wi, wo)
+                    })
+                });
                 let frac = hits as f64 / n as f64;
                 let se_frac = (frac * (1.0 - frac) / n as f64).sqrt();
                 assert!(mass <= 1.0 + 1e-3, "{name}: pdf mass {mass}");
@@ -571,7 +680,7 @@ mod registry_tests {
     use brdf_core::ParamError;
 
     #[test]
-    fn nine_models_with_documented_parameters() {
+    fn twelve_models_with_documented_parameters() {
         let names: Vec<_> = registry::models().iter().map(|m| m.name).collect();
         assert_eq!(
             names,
@@ -582,9 +691,12 @@ mod registry_tests {
                 "blinn-phong",
                 "lewis-phong",
                 "cook-torrance",
+                "htsg",
+                "poulin-fournier",
                 "oren-nayar",
                 "ward",
-                "schlick"
+                "schlick",
+                "strauss"
             ]
         );
         for info in registry::models() {
@@ -642,10 +754,169 @@ mod registry_tests {
             registry::create("cook-torrance", ["f0=1"]),
             Err(ParamError::OutOfRange { .. })
         ));
+        // The three hard models (MODELS.md §7, §8, §12).
+        for (model, bad, name) in [
+            ("htsg", "tau=0", "tau"),
+            ("htsg", "tau=-1", "tau"),
+            ("htsg", "sigma0=0", "sigma0"),
+            ("htsg", "lambda=0.1", "lambda"),
+            ("htsg", "kappa=-0.5", "kappa"),
+            ("htsg", "eta=nan", "eta"),
+            ("poulin-fournier", "height=0", "height"),
+            ("poulin-fournier", "height=1.5", "height"),
+            ("poulin-fournier", "gap=-1", "gap"),
+            ("strauss", "smoothness=1", "smoothness"),
+            ("strauss", "metalness=2", "metalness"),
+        ] {
+            match registry::create(model, [bad]) {
+                Err(ParamError::OutOfRange { name: n, .. }) => assert_eq!(n, name, "{model} {bad}"),
+                other => panic!("{model} {bad}: {other:?}"),
+            }
+        }
+        assert!(registry::create("poulin-fournier", ["height=1", "gap=0"]).is_ok());
+        assert!(matches!(
+            registry::create("poulin-fournier", ["kd=0.9", "ks=0.2"]),
+            Err(ParamError::Constraint { .. })
+        ));
         let ward = registry::find("ward").unwrap();
         assert!(
             ward.build(&registry::find("phong").unwrap().defaults())
                 .is_err()
         );
+    }
+}
+
+mod htsg {
+    use super::*;
+    use brdf_core::models::{HTSG_SERIES_LIMIT, Htsg, conductor_fresnel, htsg_sum};
+    use glam::DVec3;
+
+    /// For g ≫ 1 the directional-diffuse part approaches the Beckmann–Smith microfacet BRDF
+    /// with RMS slope m = 2σ0/τ (MODELS.md §7): F·D_B(h)·S(θi)S(θo)/(4 cos θi cos θo). Checked
+    /// where σ ≈ σ0 (the erfc in K is negligible) and the lobe matters (tan²θh/m² ≤ 4), on
+    /// both sides of the series/expansion switch, to 1 % at g ≥ 100.
+    #[test]
+    fn rough_limit_is_beckmann_smith() {
+        let (sigma0, tau, lambda) = (1.0f64, 20.0f64, 0.5f64);
+        let b = Htsg::new(
+            sigma0 as f32,
+            tau as f32,
+            Vec3::splat(lambda as f32),
+            Vec3::splat(1.3),
+            Vec3::splat(7.0),
+            Vec3::ZERO,
+        )
+        .unwrap();
+        let m = 2.0 * sigma0 / tau;
+        let (mut checked, mut below, mut above) = (0, 0, 0);
+        for ti in [0.0f64, 20.0, 40.0, 55.0] {
+            let wi = dir(ti, 10.0).as_dvec3().normalize();
+            for tb in [0.0f64, 0.05, 0.1, 0.15, 0.19] {
+                for ph in [0.0f64, 70.0, 160.0, 250.0] {
+                    let (st, ct) = (tb / (1.0 + tb * tb).sqrt(), 1.0 / (1.0 + tb * tb).sqrt());
+                    let h = DVec3::new(st * ph.to_radians().cos(), st * ph.to_radians().sin(), ct);
+                    let wo = 2.0 * wi.dot(h) * h - wi;
+                    if wo.z < 0.2 {
+                        continue;
+                    }
+                    let g = (2.0 * std::f64::consts::PI * sigma0 * (wi.z + wo.z) / lambda).powi(2);
+                    assert!(g >= 100.0);
+                    if g <= HTSG_SERIES_LIMIT {
+                        below += 1;
+                    } else {
+                        above += 1;
+                    }
+                    let tan2 = tb * tb;
+                    let d = (-tan2 / (m * m)).exp() / (std::f64::consts::PI * m * m * ct.powi(4));
+                    let f = conductor_fresnel(wi.dot(h), 1.3, 7.0);
+                    let want = f * d * b.shadowing(wi) * b.shadowing(wo) / (4.0 * wi.z * wo.z);
+                    let got = f64::from(b.eval(wi.as_vec3(), wo.as_vec3()).x);
+                    assert!(
+                        (got - want).abs() <= 0.01 * want,
+                        "θi={ti} tanθh={tb} φh={ph} g={g:.0}: htsg {got} vs Beckmann–Smith {want}"
+                    );
+                    checked += 1;
+                }
+            }
+        }
+        assert!(
+            checked >= 60 && below >= 10 && above >= 10,
+            "{checked} {below} {above}"
+        );
+    }
+
+    /// The series and the expansion meet at g = 300 within 0.1 % near the peak (A ≤ 3g), and
+    /// the series itself has no jumps from its adaptive start and stop.
+    #[test]
+    fn continuous_across_the_switch_and_smooth_in_g() {
+        let g = HTSG_SERIES_LIMIT;
+        for k in 0..=30 {
+            let a = g * 0.1 * f64::from(k);
+            let (s, e) = (htsg_sum(g, a), htsg_sum(g * (1.0 + 1e-12), a));
+            assert!(
+                (s - e).abs() <= 1e-3 * s,
+                "A={a}: series {s} vs expansion {e}"
+            );
+        }
+        // The second-order expansion is never negative, even in the far tail.
+        for a in [0.0, 1e3, 1e4, 1e5, 1e7] {
+            for g in [301.0, 1e3, 1e5] {
+                let e = htsg_sum(g, a);
+                assert!(e.is_finite() && e >= 0.0, "g={g} A={a}: {e}");
+            }
+        }
+        let mut g = 1e-3;
+        while g < HTSG_SERIES_LIMIT {
+            for a in [0.0, 1.0, 30.0, 500.0] {
+                let (s0, s1) = (htsg_sum(g, a), htsg_sum(g * (1.0 + 1e-9), a));
+                // d ln Σ / d ln g is O(1 + A/g): a relative step of 1e-9 moves Σ by ~1e-9·that.
+                let allowed = 1e-9 * (2.0 + g + a / g) + 1e-12;
+                assert!(
+                    (s1 - s0).abs() <= allowed * s0 + 1e-300,
+                    "g={g} A={a}: {s0} -> {s1}"
+                );
+            }
+            g *= 1.37;
+        }
+        assert_eq!(htsg_sum(0.0, 1.0), 0.0);
+    }
+
+    /// The sum against a plain term-by-term evaluation from m = 1 (no window, no log-space
+    /// bookkeeping) for g up to the switch.
+    #[test]
+    fn series_matches_plain_summation() {
+        for g in [1e-4f64, 0.3, 2.0, 18.5, 75.0, 160.0, 299.0] {
+            for a in [0.0, 0.5, 10.0, 100.0, 2000.0] {
+                let (mut plain, mut ln_fact) = (0.0f64, 0.0f64);
+                for m in 1..3000 {
+                    let m = f64::from(m);
+                    ln_fact += m.ln();
+                    plain += (m * g.ln() - g - ln_fact - m.ln() - a / m).exp();
+                }
+                let s = htsg_sum(g, a);
+                assert!(
+                    // Below e^-200 the stopping rule is absolute (invisible in f32 after the
+                    // prefactor), so only there may the relative agreement loosen.
+                    // (ln m! summed over ~300 terms carries ~1e-12 of its own error.)
+                    (s - plain).abs() <= 1e-11 * plain + 1e-87,
+                    "g={g} A={a}: {s} vs {plain}"
+                );
+            }
+        }
+    }
+
+    /// Sampling picks the specular delta toward r(wi) with a probability that follows its
+    /// share, and the delta reflectance is 0 below the horizon.
+    #[test]
+    fn delta_part() {
+        let b = build("htsg", &["sigma0=0.0318", "tau=0.3"]);
+        let wi = dir(60.0, 0.0);
+        let rho = b.delta_reflectance(wi);
+        assert!((f64::from(rho.y) - 0.779_06).abs() < 1e-4);
+        assert!(b.eval(wi, brdf_core::geometry::mirror(wi)).max_element() > 0.0);
+        let s = b.sample(wi, 0.0, Vec2::splat(0.5)).unwrap();
+        assert!(s.delta && s.wo == brdf_core::geometry::mirror(wi));
+        assert_eq!(b.delta_reflectance(dir(100.0, 0.0)), Vec3::ZERO);
+        assert!(b.sample(dir(100.0, 0.0), 0.0, Vec2::splat(0.5)).is_none());
     }
 }

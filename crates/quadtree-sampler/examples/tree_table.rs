@@ -24,6 +24,12 @@ const SETS: &[(&str, &[&str])] = &[
     ("ward", &["alpha_x=0.05", "alpha_y=0.2"]),
     ("schlick", &[]),
     ("schlick", &["r=0.02", "p=0.3"]),
+    ("htsg", &[]),
+    ("htsg", &["sigma0=0.0318", "tau=0.3"]),
+    ("poulin-fournier", &[]),
+    ("poulin-fournier", &["height=0.5", "gap=1", "n=1000"]),
+    ("strauss", &[]),
+    ("strauss", &["smoothness=0.9", "metalness=1"]),
 ];
 
 fn main() {

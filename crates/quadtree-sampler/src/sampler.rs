@@ -195,6 +195,18 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
         leaf: usize,
         rng: &mut R,
     ) -> Option<(ChartPoint, u32)> {
+        self.rejection(leaf, rng).map(|(c, _, _, t)| (c, t))
+    }
+
+    /// The rejection loop of [`QuadtreeSampler::sample_leaf`], also returning the accepted
+    /// direction as the unit f32 vector a caller sees and f_r there (RGB). f is evaluated once
+    /// per trial, at exactly that vector, so the accepted value *is* `eval(wi, wo)` and its
+    /// luminance is what [`QuadtreeSampler::pdf`] computes: no second evaluation is needed.
+    fn rejection<R: Rng + ?Sized>(
+        &self,
+        leaf: usize,
+        rng: &mut R,
+    ) -> Option<(ChartPoint, Vec3, Vec3, u32)> {
         let node = &self.tree.nodes()[leaf];
         let (prop, rect, m) = (node.proposal, node.rect(), node.bound);
         if !(node.v1 > 0.0 && m > 0.0) {
@@ -207,26 +219,30 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
             let Some(c) = prop.point(self.config.map, &rect, q) else {
                 continue;
             };
-            let h = f64::from(self.brdf.eval_luminance(self.wi, c.w.as_vec3())) * c.jacobian;
+            let wo = c.w.as_vec3().normalize_or_zero();
+            let f = self.brdf.eval(self.wi, wo);
+            let h = f64::from(luminance(f)) * c.jacobian;
             if h > m {
                 self.violations.fetch_add(1, Ordering::Relaxed);
             }
             if z < h {
-                return Some((c, trial));
+                return Some((c, wo, f, trial));
             }
         }
         self.gave_up.fetch_add(1, Ordering::Relaxed);
         None
     }
 
-    /// Draws one direction: select a region, then rejection-sample it.
+    /// Draws one direction: select a region, then rejection-sample it. f_r is evaluated once
+    /// per trial and never again for the accepted sample.
     pub fn sample<R: Rng + ?Sized>(&self, rng: &mut R) -> Option<Sample> {
         let leaf = self.select_region(uniform_f64(rng));
-        let (c, trials) = self.sample_leaf(leaf, rng)?;
-        let wo = c.w.as_vec3().normalize();
-        let f = self.brdf.eval(self.wi, wo);
-        let pdf = self.pdf(wo);
-        if !(pdf > 0.0 && wo.z > 0.0) {
+        let (_, wo, f, trials) = self.rejection(leaf, rng)?;
+        if !above_horizon(wo) {
+            return None;
+        }
+        let pdf = (f64::from(luminance(f)) * f64::from(wo.z) * self.pdf_scale) as f32;
+        if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
         Some(Sample {

@@ -37,17 +37,29 @@ const SETS: &[(&str, &[&str])] = &[
     ("ward", &["alpha_x=0.05", "alpha_y=0.2"]),
     ("schlick", &[]),
     ("schlick", &["r=0.02", "p=0.3"]),
+    ("htsg", &[]),
+    ("poulin-fournier", &[]),
+    ("strauss", &[]),
+    ("strauss", &["smoothness=0.9", "metalness=1"]),
 ];
 
 const ANGLES: [f64; 4] = [0.0, 45.0, 80.0, 89.0];
+
+/// Models whose eval costs microseconds (HTSG sums a series, Poulin-Fournier integrates over
+/// the cylinder): the seed rule and the χ² run for them, but not target mode (E[T] ≤ 1.25),
+/// whose rim refinement needs 10⁵–10⁶ evaluations per build — minutes on 2 cores.
+const COSTLY: &[&str] = &["htsg", "poulin-fournier"];
 
 fn model(name: &str, params: &[&str]) -> Box<dyn Brdf> {
     registry::create(name, params.iter().copied()).unwrap()
 }
 
 /// ρ(wi) = ∫ Y(f) cos dω by the hemisphere rule (independent of the tree).
+/// (160 × 640 panels of 8 × 8 points; 80 × 320 for the costly models, whose lobes here are
+/// broad.)
 fn quadrature_albedo(b: &dyn Brdf, wi: Vec3) -> f64 {
-    f64::from(luminance(directional_albedo(b, wi, 160, 8).as_vec3()))
+    let panels = if COSTLY.contains(&b.name()) { 80 } else { 160 };
+    f64::from(luminance(directional_albedo(b, wi, panels, 8).as_vec3()))
 }
 
 #[test]
@@ -82,6 +94,9 @@ fn builds_terminate_with_bounded_trials_and_the_right_albedo() {
                     (got - want).abs() <= 1e-3 * want,
                     "{name} {params:?} {theta}° {map:?}: tree albedo {got} vs quadrature {want}"
                 );
+                if COSTLY.contains(&name) {
+                    continue;
+                }
                 let target = QuadtreeSampler::new(
                     &*b,
                     wi,
@@ -109,8 +124,12 @@ fn builds_terminate_with_bounded_trials_and_the_right_albedo() {
 fn builds_terminate_at_grazing_incidence() {
     for &(name, params) in SETS {
         let b = model(name, params);
-        let s = QuadtreeSampler::new(&*b, dir(89.9, 0.0), BuildConfig::with_target_trials(1.25))
-            .unwrap();
+        let config = if COSTLY.contains(&name) {
+            BuildConfig::default()
+        } else {
+            BuildConfig::with_target_trials(1.25)
+        };
+        let s = QuadtreeSampler::new(&*b, dir(89.9, 0.0), config).unwrap();
         assert!(s.stats().nodes <= 1 << 20);
         assert!(s.albedo().is_finite());
     }
@@ -315,7 +334,7 @@ fn chi2(counts: &[u64], probs: &[f64], m: u64) -> (f64, usize, f64) {
 
 /// 10⁶ samples per (model, wi): Pearson χ² on a 24 × 48 equal-area polar grid against the
 /// independent cell integrals. Reject at z > 3.72 (one-sided α = 1e-4 per test, Šidák over the
-/// 120 tests of this run ≈ 1.2 %; the seeds are fixed, so the outcome is deterministic).
+/// 152 tests of this run ≈ 1.5 %; the seeds are fixed, so the outcome is deterministic).
 #[test]
 fn samples_follow_f_cos() {
     let (rings, sectors, m) = (24, 48, 1_000_000u64);

@@ -241,7 +241,7 @@ pub fn htsg_sum(g: f64, a: f64) -> f64 {
         return e / g + 0.5 * g * e * (2.0 / g3 - 4.0 * a / (g3 * g) + a * a / (g3 * g2));
     }
     let ln_g = m::ln(g);
-    let start = (g - 10.0 * m::sqrt(g) - 10.0).floor().max(1.0);
+    let start = m::floor(g - 10.0 * m::sqrt(g) - 10.0).max(1.0);
     let mut k = start;
     // ln of the Poisson weight g^k e^{-g} / k!
     let mut ln_pois = k * ln_g - g - ln_gamma(k + 1.0);

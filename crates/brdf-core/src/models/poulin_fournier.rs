@@ -221,7 +221,7 @@ fn diffuse_integral(wi: DVec3, wo: DVec3, a: f64, b: f64) -> f64 {
         let (s, c) = (m::sin(t), m::cos(t));
         (wi.y * s + wi.z * c).max(0.0) * (wo.y * s + wo.z * c).max(0.0)
     };
-    let panels = ((b - a) / 0.4).ceil().max(1.0);
+    let panels = m::ceil((b - a) / 0.4).max(1.0);
     let h = (b - a) / panels;
     let mut total = 0.0;
     for k in 0..panels as u32 {
