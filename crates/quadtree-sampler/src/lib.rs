@@ -62,6 +62,7 @@ mod encoder;
 mod error;
 mod sampler;
 mod tree;
+pub mod validate;
 mod warp;
 
 pub use brdf_core;
