@@ -435,8 +435,10 @@ pub fn integrate_adaptive_peak(
     refine(map, rect, coarse, rule, tol, depth, f, peak)
 }
 
+/// The refinement of [`integrate_adaptive_peak`] from an already computed one-application
+/// estimate `coarse` of `rect` (for callers that needed it first, to set `tol`).
 #[allow(clippy::too_many_arguments)]
-fn refine(
+pub(crate) fn refine(
     map: DiskMap,
     rect: &Rect,
     coarse: f64,

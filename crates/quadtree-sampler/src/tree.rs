@@ -2,7 +2,7 @@
 //! target-trials refinement.
 
 use crate::chart::{
-    Chart, Peak, Proposal, Rect, UnitRule, integrate_adaptive, integrate_adaptive_peak,
+    Chart, Peak, Proposal, Rect, UnitRule, integrate_adaptive, integrate_once_peak, refine,
 };
 use crate::config::{BuildConfig, IntegrationRule};
 use crate::error::BuildError;
@@ -213,12 +213,15 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             };
         }
         let f = |w: DVec3| self.f(w);
-        let coarse = crate::chart::integrate_once(map, rect, &self.rule, &f);
-        let tol = (self.config.integration_tolerance * coarse.abs()).max(self.tol_floor);
+        // One application of the rule sets the tolerance and is the refinement's start (the
+        // node's points are integrated once, not twice).
         let mut peak = Peak::default();
-        let v1 = integrate_adaptive_peak(
+        let coarse = integrate_once_peak(map, rect, &self.rule, &f, &mut peak);
+        let tol = (self.config.integration_tolerance * coarse.abs()).max(self.tol_floor);
+        let v1 = refine(
             map,
             rect,
+            coarse,
             &self.rule,
             tol,
             u32::from(self.config.integration_depth),
