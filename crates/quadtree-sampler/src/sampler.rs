@@ -241,7 +241,7 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
         if !above_horizon(wo) {
             return None;
         }
-        let pdf = (f64::from(luminance(f)) * f64::from(wo.z) * self.pdf_scale) as f32;
+        let pdf = self.pdf_of(luminance(f), wo);
         if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
@@ -262,7 +262,14 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
         if !above_horizon(wo) {
             return 0.0;
         }
-        (f64::from(self.brdf.eval_luminance(self.wi, wo)) * f64::from(wo.z) * self.pdf_scale) as f32
+        self.pdf_of(self.brdf.eval_luminance(self.wi, wo), wo)
+    }
+
+    /// Y(f_r)·cos θ·J/V from the luminance `y` of f_r at `wo`: the one expression behind both
+    /// [`QuadtreeSampler::pdf`] and the pdf a sample carries, so the two are bit-identical.
+    #[inline]
+    fn pdf_of(&self, y: f32, wo: Vec3) -> f32 {
+        (f64::from(y) * f64::from(wo.z) * self.pdf_scale) as f32
     }
 }
 
