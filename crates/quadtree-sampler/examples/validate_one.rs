@@ -1,7 +1,8 @@
 //! One validation check, timed: build the quadtree for a model and incident direction, draw
 //! 10⁶ samples, and judge them on both grids (SPEC §5). Prints the χ², p-values, the seed's
 //! a_i spread and how long each stage took. `cargo run --release -p quadtree-sampler --example
-//! validate_one [-- MODEL [k=v ...]]` (default: phong n=500, wi at 45°).
+//! validate_one [-- MODEL [k=v ...]]` (default: phong n=500, wi at θ = 45°; set THETA and PHI
+//! in degrees to move it).
 
 use brdf_core::registry;
 use glam::Vec3;
@@ -21,8 +22,16 @@ fn main() {
         eprintln!("error: {e}");
         std::process::exit(2)
     });
-    let t = 45f32.to_radians();
-    let wi = Vec3::new(t.sin(), 0.0, t.cos());
+    // THETA / PHI (degrees) move wi; default 45°, 0°.
+    let angle = |var: &str, default: f32| {
+        std::env::var(var)
+            .ok()
+            .and_then(|v| v.parse::<f32>().ok())
+            .unwrap_or(default)
+            .to_radians()
+    };
+    let (t, p) = (angle("THETA", 45.0), angle("PHI", 0.0));
+    let wi = Vec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos());
     for grid in [
         CellGrid::Square { res: 25 },
         CellGrid::Polar {

@@ -149,13 +149,13 @@ impl CellGrid {
                                 p0,
                                 p1,
                                 inner_tol,
-                                MAX_DEPTH,
+                                MAX_PIECES,
                             )
                     },
                     v0,
                     v1,
                     tol,
-                    MAX_DEPTH,
+                    MAX_PIECES,
                 )
             }
             Self::Square { res } => {
@@ -187,13 +187,13 @@ impl CellGrid {
                                 t0,
                                 t1,
                                 inner_tol,
-                                MAX_DEPTH,
+                                MAX_PIECES,
                             )
                     },
                     s0,
                     s1,
                     tol,
-                    MAX_DEPTH,
+                    MAX_PIECES,
                 )
             }
         }
@@ -217,8 +217,8 @@ impl CellGrid {
     }
 }
 
-/// Deepest bisection of the adaptive rule.
-const MAX_DEPTH: u32 = 16;
+/// Most intervals one adaptive integration may split its range into.
+const MAX_PIECES: usize = 200;
 
 /// Gauss–Kronrod 7–15 nodes on [0, 1] (QUADPACK's qk15), largest first; the last is 0.
 const XGK: [f64; 8] = [
@@ -266,15 +266,77 @@ fn gk15(f: &(impl Fn(f64) -> f64 + ?Sized), a: f64, b: f64) -> (f64, f64) {
     (k * h, (k - g).abs() * h)
 }
 
-/// Adaptive bisection of [`gk15`] to an absolute tolerance (halved per level, at most `depth`
-/// levels).
-fn adaptive(f: &(impl Fn(f64) -> f64 + ?Sized), a: f64, b: f64, tol: f64, depth: u32) -> f64 {
-    let (k, err) = gk15(f, a, b);
-    if err <= tol || depth == 0 || !err.is_finite() {
-        return k;
+/// Globally adaptive [`gk15`] (QUADPACK's QAG strategy): keep bisecting the interval with the
+/// largest error estimate until the estimates sum to at most `tol`, or `limit` intervals
+/// exist. Unlike halving the tolerance per level, this spends evaluations only where the
+/// error is: a kink or a jump costs one chain of bisections, not a full-depth tree, and the
+/// limit bounds the work on integrands that never meet the tolerance.
+fn adaptive(f: &(impl Fn(f64) -> f64 + ?Sized), a: f64, b: f64, tol: f64, limit: usize) -> f64 {
+    /// An interval with its estimate and error, ordered by error (ties by position, so the
+    /// order of bisection is fully determined by the integrand).
+    struct Piece {
+        a: f64,
+        b: f64,
+        value: f64,
+        err: f64,
     }
-    let c = 0.5 * (a + b);
-    adaptive(f, a, c, 0.5 * tol, depth - 1) + adaptive(f, c, b, 0.5 * tol, depth - 1)
+    impl PartialEq for Piece {
+        fn eq(&self, other: &Self) -> bool {
+            self.cmp(other) == core::cmp::Ordering::Equal
+        }
+    }
+    impl Eq for Piece {}
+    impl PartialOrd for Piece {
+        fn partial_cmp(&self, other: &Self) -> Option<core::cmp::Ordering> {
+            Some(self.cmp(other))
+        }
+    }
+    impl Ord for Piece {
+        fn cmp(&self, other: &Self) -> core::cmp::Ordering {
+            self.err
+                .total_cmp(&other.err)
+                .then(other.a.total_cmp(&self.a))
+        }
+    }
+    let (value, err) = gk15(f, a, b);
+    if err <= tol || !err.is_finite() {
+        return value;
+    }
+    let mut heap = alloc::collections::BinaryHeap::with_capacity(limit.min(1024));
+    heap.push(Piece { a, b, value, err });
+    let mut total_err = err;
+    while total_err > tol && heap.len() < limit {
+        let Some(p) = heap.pop() else { break };
+        let c = 0.5 * (p.a + p.b);
+        if !(c > p.a && c < p.b) {
+            // The interval cannot be split in f64: keep it as it is and stop.
+            heap.push(p);
+            break;
+        }
+        let (v0, e0) = gk15(f, p.a, c);
+        let (v1, e1) = gk15(f, c, p.b);
+        if !(e0.is_finite() && e1.is_finite()) {
+            heap.push(p);
+            break;
+        }
+        total_err += e0 + e1 - p.err;
+        heap.push(Piece {
+            a: p.a,
+            b: c,
+            value: v0,
+            err: e0,
+        });
+        heap.push(Piece {
+            a: c,
+            b: p.b,
+            value: v1,
+            err: e1,
+        });
+    }
+    // Sum in order of position, so the result does not depend on the heap's layout.
+    let mut pieces = heap.into_vec();
+    pieces.sort_unstable_by(|x, y| x.a.total_cmp(&y.a));
+    pieces.iter().map(|p| p.value).sum()
 }
 
 /// The regularised upper incomplete gamma function Q(a, x) = Γ(a, x)/Γ(a), a > 0, x ≥ 0:
@@ -453,6 +515,11 @@ pub struct Report {
     pub alpha: f64,
     /// Why the test rejected (empty when it passed).
     pub reasons: Vec<String>,
+    /// The reasons that concern the sampler judged against its own pdf alone: invalid
+    /// masses, a pdf integrating above 1, the χ² against its own pdf, samples outside the
+    /// domain, inconsistent samples. A sampler that is exact for its own pdf but not ∝ f·cos
+    /// (an analytic lobe sampler, the warp) has none.
+    pub own_reasons: Vec<String>,
 }
 
 impl Report {
@@ -460,6 +527,44 @@ impl Report {
     #[must_use]
     pub fn passed(&self) -> bool {
         self.reasons.is_empty()
+    }
+
+    /// True when the sampler is right about its own pdf (see [`Report::own_reasons`]),
+    /// whether or not that pdf follows f·cos.
+    #[must_use]
+    pub fn passed_own(&self) -> bool {
+        self.own_reasons.is_empty()
+    }
+}
+
+/// Samples per chunk of [`Validation::test_chunked`].
+pub const CHUNK: u64 = 1 << 16;
+
+/// Histogram and tallies of one run of samples.
+struct Counts {
+    observed: Vec<u64>,
+    lost: u64,
+    outside: u64,
+    inconsistent: u64,
+}
+
+impl Counts {
+    fn new(cells: usize) -> Self {
+        Self {
+            observed: vec![0; cells],
+            lost: 0,
+            outside: 0,
+            inconsistent: 0,
+        }
+    }
+
+    fn add(&mut self, other: &Self) {
+        for (a, b) in self.observed.iter_mut().zip(&other.observed) {
+            *a += b;
+        }
+        self.lost += other.lost;
+        self.outside += other.outside;
+        self.inconsistent += other.inconsistent;
     }
 }
 
@@ -524,6 +629,7 @@ impl<'a, B: Brdf + ?Sized> Validation<'a, B> {
 
     /// Draws `samples` directions from `sampler` (which must be for this BRDF and `wi`),
     /// histograms them, and judges them at per-test significance `alpha` (see [`sidak`]).
+    /// Serial: one random stream for all samples.
     pub fn test<S: DirectionSampler + ?Sized>(
         &self,
         sampler: &S,
@@ -531,37 +637,101 @@ impl<'a, B: Brdf + ?Sized> Validation<'a, B> {
         rng: &mut dyn Rng,
         alpha: f64,
     ) -> Report {
-        let n = self.grid.len();
-        let mut reasons = Vec::new();
-        let total: f64 = self.mass.iter().sum();
-        if !(total > 0.0 && total.is_finite()) || self.mass.iter().any(|&x| x.is_nan() || x < 0.0) {
-            reasons.push(format!(
-                "the expected masses are not a distribution (total {total}, a negative or NaN cell)"
-            ));
+        let counts = self.count(sampler, 0..samples, rng);
+        self.judge(sampler, samples, counts, alpha)
+    }
+
+    /// As [`Validation::test`], with the samples split into chunks of [`CHUNK`] drawn from
+    /// their own streams: chunk k (samples k·CHUNK ..) uses `rng_for_chunk(k)`. With the
+    /// `rayon` feature the chunks run in parallel; the counts are summed in chunk order, so
+    /// the report is bit-identical to the serial run and does not depend on the thread count.
+    pub fn test_chunked<S, R, F>(
+        &self,
+        sampler: &S,
+        samples: u64,
+        rng_for_chunk: F,
+        alpha: f64,
+    ) -> Report
+    where
+        S: DirectionSampler + ?Sized,
+        R: Rng,
+        F: Fn(u64) -> R + Sync,
+    {
+        let chunks = samples.div_ceil(CHUNK);
+        let one = |k: u64| {
+            let mut rng = rng_for_chunk(k);
+            self.count(sampler, k * CHUNK..samples.min((k + 1) * CHUNK), &mut rng)
+        };
+        #[cfg(feature = "rayon")]
+        let parts: Vec<Counts> = {
+            use rayon::prelude::*;
+            (0..chunks).into_par_iter().map(one).collect()
+        };
+        #[cfg(not(feature = "rayon"))]
+        let parts: Vec<Counts> = (0..chunks).map(one).collect();
+        let mut total = Counts::new(self.grid.len());
+        for p in &parts {
+            total.add(p);
         }
-        let mut observed = vec![0u64; n];
-        let (mut lost, mut outside, mut inconsistent) = (0u64, 0u64, 0u64);
-        for k in 0..samples {
+        self.judge(sampler, samples, total, alpha)
+    }
+
+    /// Histograms the samples with indices in `range` (the index decides which samples get
+    /// the consistency check: every one of the first 10⁴, then one in 64).
+    fn count<S: DirectionSampler + ?Sized>(
+        &self,
+        sampler: &S,
+        range: core::ops::Range<u64>,
+        rng: &mut dyn Rng,
+    ) -> Counts {
+        let mut c = Counts::new(self.grid.len());
+        for k in range {
             let Some(s) = sampler.sample(rng) else {
-                lost += 1;
+                c.lost += 1;
                 continue;
             };
-            let Some(c) = (!s.delta).then(|| self.grid.cell_of(s.wo)).flatten() else {
-                outside += 1;
+            let Some(cell) = (!s.delta).then(|| self.grid.cell_of(s.wo)).flatten() else {
+                c.outside += 1;
                 continue;
             };
-            observed[c] += 1;
-            // Consistency: every sample for the first 10⁴, then one in 64.
+            c.observed[cell] += 1;
             if k < 10_000 || k % 64 == 0 {
                 let p = sampler.pdf(s.wo);
                 let w = luminance(s.f) * s.wo.z / s.pdf;
                 let ok_pdf = (p - s.pdf).abs() <= 1e-4 * s.pdf.abs().max(p.abs());
                 let ok_w = (luminance(s.weight) - w).abs() <= 1e-4 * w.abs() + 1e-30;
                 if !(ok_pdf && ok_w) {
-                    inconsistent += 1;
+                    c.inconsistent += 1;
                 }
             }
         }
+        c
+    }
+
+    /// Judges histogrammed counts.
+    fn judge<S: DirectionSampler + ?Sized>(
+        &self,
+        sampler: &S,
+        samples: u64,
+        counts: Counts,
+        alpha: f64,
+    ) -> Report {
+        // (reason, whether it also concerns the sampler judged against its own pdf)
+        let mut reasons: Vec<(String, bool)> = Vec::new();
+        let total: f64 = self.mass.iter().sum();
+        if !(total > 0.0 && total.is_finite()) || self.mass.iter().any(|&x| x.is_nan() || x < 0.0) {
+            reasons.push((format!(
+                "the expected masses are not a distribution (total {total}, a negative or NaN cell)"
+            ),
+                true,
+            ));
+        }
+        let Counts {
+            observed,
+            lost,
+            outside,
+            inconsistent,
+        } = counts;
         let m = samples as f64;
         let expected: Vec<f64> = self.mass.iter().map(|x| m * x / total).collect();
         let in_empty_cells: u64 = observed
@@ -587,40 +757,51 @@ impl<'a, B: Brdf + ?Sized> Validation<'a, B> {
         let chi2_own = chi_square(&observed_own, &expected_own);
         expected_own.pop();
         if own_total > 1.0 + 1e-3 {
-            reasons.push(format!(
-                "the sampler's pdf integrates to {own_total:.5} > 1"
+            reasons.push((
+                format!("the sampler's pdf integrates to {own_total:.5} > 1"),
+                true,
             ));
         }
-        for (label, test) in [("f·cos", &chi2), ("its own pdf", &chi2_own)] {
-            match test {
-                None => reasons.push(format!(
+        for (label, test, is_own) in [("f·cos", &chi2, false), ("its own pdf", &chi2_own, true)] {
+            let reason = match test {
+                None => Some(format!(
                     "too few degrees of freedom for the χ² against {label}: use more samples or cells"
                 )),
-                Some(c) if c.p_value.is_nan() || c.p_value < alpha => reasons.push(format!(
+                Some(c) if c.p_value.is_nan() || c.p_value < alpha => Some(format!(
                     "χ² against {label} = {:.1} with {} dof: p = {:.3e} < α = {alpha:.3e}",
                     c.statistic, c.dof, c.p_value
                 )),
-                Some(_) => {}
+                Some(_) => None,
+            };
+            if let Some(r) = reason {
+                reasons.push((r, is_own));
             }
         }
         if lost > 0 {
-            reasons.push(format!(
-                "{lost} samples carried no direction, though f·cos puts every sample somewhere"
+            reasons.push((
+                format!(
+                    "{lost} samples carried no direction, though f·cos puts every sample somewhere"
+                ),
+                false,
             ));
         }
         if outside > 0 {
-            reasons.push(format!(
+            reasons.push((format!(
                 "{outside} samples outside the domain (non-finite, at or below the horizon, or delta)"
-            ));
+            ), true));
         }
         if in_empty_cells > 0 {
-            reasons.push(format!(
-                "{in_empty_cells} samples in cells where f·cos integrates to 0"
+            reasons.push((
+                format!("{in_empty_cells} samples in cells where f·cos integrates to 0"),
+                false,
             ));
         }
         if inconsistent > 0 {
-            reasons.push(format!(
-                "{inconsistent} samples whose pdf or weight disagrees with pdf(wo) or f·cos/pdf"
+            reasons.push((
+                format!(
+                    "{inconsistent} samples whose pdf or weight disagrees with pdf(wo) or f·cos/pdf"
+                ),
+                true,
             ));
         }
         Report {
@@ -637,7 +818,12 @@ impl<'a, B: Brdf + ?Sized> Validation<'a, B> {
             chi2,
             chi2_own,
             alpha,
-            reasons,
+            own_reasons: reasons
+                .iter()
+                .filter(|r| r.1)
+                .map(|r| r.0.clone())
+                .collect(),
+            reasons: reasons.into_iter().map(|r| r.0).collect(),
         }
     }
 
@@ -700,8 +886,35 @@ mod tests {
             let (_, err) = gk15(&|x: f64| m::pow(x, f64::from(k)), 0.0, 1.0);
             assert!(err < 1e-15, "G7 x^{k}: {err}");
         }
-        let s = adaptive(&|x: f64| m::sqrt(x), 0.0, 1.0, 1e-12, 40);
+        let s = adaptive(&|x: f64| m::sqrt(x), 0.0, 1.0, 1e-12, 200);
         assert!((s - 2.0 / 3.0).abs() < 1e-11);
+    }
+
+    #[test]
+    fn adaptive_resolves_kinks_and_jumps_with_few_evaluations() {
+        let count = core::cell::Cell::new(0u32);
+        let c = 1.0 / PI;
+        let kink = |x: f64| {
+            count.set(count.get() + 1);
+            (x - c).abs()
+        };
+        let exact = 0.5 * (c * c + (1.0 - c) * (1.0 - c));
+        let s = adaptive(&kink, 0.0, 1.0, 1e-12, MAX_PIECES);
+        assert!((s - exact).abs() < 1e-12, "{s} vs {exact}");
+        // One chain of bisections toward the kink, not a full-depth tree.
+        assert!(count.get() < 1500, "{} evaluations", count.get());
+        count.set(0);
+        let jump = |x: f64| {
+            count.set(count.get() + 1);
+            if x < c { 1.0 } else { 3.0 }
+        };
+        let s = adaptive(&jump, 0.0, 1.0, 1e-9, MAX_PIECES);
+        assert!((s - (c + 3.0 * (1.0 - c))).abs() < 1e-9, "{s}");
+        assert!(count.get() < 2000, "{} evaluations", count.get());
+        // The limit bounds the work when the tolerance cannot be met.
+        count.set(0);
+        let _ = adaptive(&jump, 0.0, 1.0, 0.0, 50);
+        assert!(count.get() <= 15 * (2 * 50), "{} evaluations", count.get());
     }
 
     #[test]

@@ -172,3 +172,37 @@ fn bad_inputs_are_errors() {
     let mirror = model("mirror", &[]);
     assert!(Validation::new(&*mirror, Vec3::Z, grids()[0], 1e-7).is_err());
 }
+
+/// The chunked test is bit-identical on 1 and 4 threads, and with a single chunk it is the
+/// serial test.
+#[test]
+fn chunked_test_does_not_depend_on_the_thread_count() {
+    let b = model("ward", &["alpha_x=0.1", "alpha_y=0.3"]);
+    let wi = dir(60.0, 20.0);
+    let v = Validation::new(&*b, wi, grids()[1], 1e-7).unwrap();
+    let q = QuadtreeSampler::new(&*b, wi, BuildConfig::default()).unwrap();
+    let seeded = |k: u64| Pcg64::seed_from_u64(1000 + k);
+    let on = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| v.test_chunked(&q, 300_000, seeded, 0.01))
+    };
+    let (one, four) = (on(1), on(4));
+    assert_eq!(one.observed, four.observed);
+    assert_eq!(one.observed.iter().sum::<u64>(), 300_000);
+    let bits = |r: &Report| {
+        let c = r.chi2.as_ref().unwrap();
+        (
+            c.statistic.to_bits(),
+            c.p_value.to_bits(),
+            r.reasons.clone(),
+        )
+    };
+    assert_eq!(bits(&one), bits(&four));
+    let chunked = v.test_chunked(&q, 50_000, seeded, 0.01);
+    let serial = v.test(&q, 50_000, &mut seeded(0), 0.01);
+    assert_eq!(chunked.observed, serial.observed);
+    assert_eq!(bits(&chunked), bits(&serial));
+}
