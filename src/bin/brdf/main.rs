@@ -2,8 +2,10 @@
 //! Errors go to stderr with exit status 2.
 
 mod eval;
+mod images;
 mod models;
 mod sample;
+mod test;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -58,6 +60,15 @@ enum Command {
         model: ModelArgs,
         #[command(flatten)]
         sampler: sample::SamplerArgs,
+    },
+    /// The validation of SPEC §5 for any sampler: histogram --samples directions over a cell
+    /// grid and compare with ∫f·cos per cell (the seed's a_i spread, Pearson χ²) and with the
+    /// sampler's own pdf. Prints a table; exits 1 when any test rejects.
+    Test {
+        #[command(flatten)]
+        model: ModelArgs,
+        #[command(flatten)]
+        test: test::TestArgs,
     },
 }
 
@@ -118,9 +129,15 @@ impl From<std::io::Error> for CliError {
     }
 }
 
-fn run(cli: Cli) -> Result<(), CliError> {
+/// What a subcommand found: every test passed, or one rejected (exit status 1).
+enum Outcome {
+    Passed,
+    Rejected,
+}
+
+fn run(cli: Cli) -> Result<Outcome, CliError> {
     let stdout = std::io::stdout().lock();
-    match cli.command {
+    let done = match cli.command {
         Command::Models { json } => models::run(json, stdout),
         Command::Eval { model } => {
             let brdf = model.build()?;
@@ -140,12 +157,23 @@ fn run(cli: Cli) -> Result<(), CliError> {
             let brdf = model.build()?;
             sample::run_pdf(&*brdf, &sampler, std::io::stdin().lock(), stdout)
         }
-    }
+        Command::Test { model, test } => {
+            let brdf = model.build()?;
+            let passed = test::run(&*brdf, &model.params, &test, stdout)?;
+            return Ok(if passed {
+                Outcome::Passed
+            } else {
+                Outcome::Rejected
+            });
+        }
+    };
+    done.map(|()| Outcome::Passed)
 }
 
 fn main() -> ExitCode {
     match run(Cli::parse()) {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(Outcome::Passed) => ExitCode::SUCCESS,
+        Ok(Outcome::Rejected) => ExitCode::from(1),
         // A closed pipe (`brdf eval | head`) is the reader's choice, not an error.
         Err(CliError::Io(e)) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
         Err(e) => {

@@ -37,21 +37,28 @@ pub(crate) enum MapArg {
     Concentric,
 }
 
-/// The sampler options shared by `sample`, `pdf` (and later `test`).
+/// The incident direction and sampler options of `sample` and `pdf`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct SamplerArgs {
     /// Incident direction x,y,z in the local frame (normalised; must be above the horizon).
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     wi: String,
+    #[command(flatten)]
+    options: SamplerOptions,
+}
+
+/// The sampler options shared by `sample`, `pdf` and `test`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct SamplerOptions {
     /// Sampler.
     #[arg(long, value_enum, default_value_t = Mode::Rejection)]
-    mode: Mode,
+    pub(crate) mode: Mode,
     /// Quadtree map (rejection mode).
     #[arg(long, value_enum, default_value_t = MapArg::Orthographic)]
-    map: MapArg,
+    pub(crate) map: MapArg,
     /// Refine the quadtree until the expected trials per sample are at most this (rejection).
     #[arg(long, value_name = "T")]
-    target_trials: Option<f64>,
+    pub(crate) target_trials: Option<f64>,
 }
 
 /// Parses `x,y,z` into a direction (not yet normalised).
@@ -67,19 +74,34 @@ pub(crate) fn parse_vec3(text: &str, what: &str) -> Result<Vec3, CliError> {
 }
 
 /// Reads the rejection sampler's bound-violation count after sampling.
-type ViolationCounter<'a> = Box<dyn Fn() -> u64 + 'a>;
+pub(crate) type ViolationCounter<'a> = Box<dyn Fn() -> u64 + 'a>;
 
 /// A built sampler and, for the quadtree, its statistics.
-struct Built<'a> {
-    sampler: Box<dyn DirectionSampler + 'a>,
+pub(crate) struct Built<'a> {
+    /// The sampler.
+    pub(crate) sampler: Box<dyn DirectionSampler + 'a>,
     /// Tree statistics, albedo, and (rejection only) the bound-violation counter.
-    tree: Option<(TreeStats, f64, Option<ViolationCounter<'a>>)>,
-    build_seconds: f64,
+    pub(crate) tree: Option<(TreeStats, f64, Option<ViolationCounter<'a>>)>,
+    /// Seconds spent building (0 for the baselines).
+    pub(crate) build_seconds: f64,
 }
 
-fn build<'a>(brdf: &'a dyn Brdf, args: &SamplerArgs) -> Result<Built<'a>, CliError> {
-    let wi = unit_direction_above(parse_vec3(&args.wi, "--wi")?)
-        .map_err(|e| CliError::Usage(format!("--wi {}: {e}", args.wi)))?;
+/// Parses and checks `--wi`.
+pub(crate) fn parse_wi(text: &str) -> Result<Vec3, CliError> {
+    unit_direction_above(parse_vec3(text, "--wi")?)
+        .map_err(|e| CliError::Usage(format!("--wi {text}: {e}")))
+}
+
+fn build_from<'a>(brdf: &'a dyn Brdf, args: &SamplerArgs) -> Result<Built<'a>, CliError> {
+    build(brdf, parse_wi(&args.wi)?, &args.options)
+}
+
+/// Builds the sampler `args` names for `brdf` at `wi` (unit, above the horizon).
+pub(crate) fn build<'a>(
+    brdf: &'a dyn Brdf,
+    wi: Vec3,
+    args: &SamplerOptions,
+) -> Result<Built<'a>, CliError> {
     if brdf.is_delta() {
         return Err(CliError::Usage(format!(
             "model `{}` is a Dirac delta: it has no continuous part to sample (its only direction is the mirror of wi)",
@@ -161,7 +183,7 @@ pub(crate) fn run_sample(
     out: &std::path::Path,
     mut stdout: impl Write,
 ) -> Result<(), CliError> {
-    let built = build(brdf, args)?;
+    let built = build_from(brdf, args)?;
     let file = std::fs::File::create(out)
         .map_err(|e| CliError::Usage(format!("--out {}: {e}", out.display())))?;
     let mut w = BufWriter::with_capacity(1 << 20, file);
@@ -190,7 +212,7 @@ pub(crate) fn run_sample(
     let n = count.max(1) as f64;
     let mut summary = json!({
         "model": brdf.name(),
-        "mode": format!("{:?}", args.mode).to_lowercase(),
+        "mode": format!("{:?}", args.options.mode).to_lowercase(),
         "count": count,
         "seed": seed,
         "build_seconds": built.build_seconds,
@@ -245,7 +267,7 @@ pub(crate) fn run_pdf(
     mut input: impl BufRead,
     out: impl Write,
 ) -> Result<(), CliError> {
-    let built = build(brdf, args)?;
+    let built = build_from(brdf, args)?;
     let mut out = BufWriter::new(out);
     let mut fmt = ryu::Buffer::new();
     let (mut line, mut lineno) = (String::new(), 0u64);

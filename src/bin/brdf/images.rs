@@ -1,0 +1,183 @@
+//! Pictures of one validation test for `brdf test --out`: a PNG of expected | observed |
+//! difference over the disk, and an EXR of the raw per-cell arrays.
+
+use brdf_sampling::glam::Vec3;
+use brdf_sampling::quadtree_sampler::validate::{CellGrid, Report};
+use std::path::Path;
+
+/// Side of one panel in pixels.
+const PANEL: u32 = 256;
+/// Margin around and between panels.
+const MARGIN: u32 = 16;
+/// Height of the colour bar under each panel.
+const BAR: u32 = 10;
+/// The standardised residual (n − e)/√e that saturates the difference map.
+pub(crate) const RESIDUAL_RANGE: f64 = 4.0;
+
+const BACKGROUND: [u8; 3] = [32, 32, 32];
+/// Panel pixels outside the unit disk (directions that do not exist).
+const OFF_DISK: [u8; 3] = [56, 56, 56];
+
+/// Viridis at nine evenly spaced stops (sequential, perceptually uniform, colour-blind safe).
+const VIRIDIS: [[f64; 3]; 9] = [
+    [68.0, 1.0, 84.0],
+    [71.0, 44.0, 122.0],
+    [59.0, 81.0, 139.0],
+    [44.0, 113.0, 142.0],
+    [33.0, 144.0, 141.0],
+    [39.0, 173.0, 129.0],
+    [92.0, 200.0, 99.0],
+    [170.0, 220.0, 50.0],
+    [253.0, 231.0, 37.0],
+];
+
+/// ColorBrewer's RdBu, blue (too few samples) through white to red (too many).
+const RDBU: [[f64; 3]; 7] = [
+    [33.0, 102.0, 172.0],
+    [67.0, 147.0, 195.0],
+    [209.0, 229.0, 240.0],
+    [247.0, 247.0, 247.0],
+    [253.0, 219.0, 199.0],
+    [214.0, 96.0, 77.0],
+    [178.0, 24.0, 43.0],
+];
+
+/// One panel: per-cell values, the colour stops, and the value range they span.
+type Panel<'a> = (&'a [f64], &'a [[f64; 3]], f64, f64);
+
+/// Piecewise-linear lookup of `t` ∈ [0, 1] in evenly spaced stops.
+fn lookup(stops: &[[f64; 3]], t: f64) -> [u8; 3] {
+    let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) };
+    let x = t * (stops.len() - 1) as f64;
+    let k = (x.floor() as usize).min(stops.len() - 2);
+    let u = x - k as f64;
+    let c = |i: usize| (stops[k][i] + u * (stops[k + 1][i] - stops[k][i])).round() as u8;
+    [c(0), c(1), c(2)]
+}
+
+/// The standardised residual of every cell, (n − e)/√e; a cell that expects nothing reads
+/// 0 when it got nothing and +∞ otherwise.
+pub(crate) fn residuals(report: &Report) -> Vec<f64> {
+    report
+        .observed
+        .iter()
+        .zip(&report.expected)
+        .map(|(&o, &e)| {
+            let o = o as f64;
+            if e > 0.0 {
+                (o - e) / e.sqrt()
+            } else if o > 0.0 {
+                f64::INFINITY
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+/// The cell under every pixel of a panel (`None` off the disk); row 0 is the top (y = +1).
+fn cell_map(grid: CellGrid) -> Vec<Option<usize>> {
+    let mut cells = Vec::with_capacity((PANEL * PANEL) as usize);
+    for j in 0..PANEL {
+        for i in 0..PANEL {
+            let x = -1.0 + 2.0 * (f64::from(i) + 0.5) / f64::from(PANEL);
+            let y = 1.0 - 2.0 * (f64::from(j) + 0.5) / f64::from(PANEL);
+            let r2 = x * x + y * y;
+            cells.push(if r2 < 1.0 {
+                grid.cell_of(Vec3::new(x as f32, y as f32, (1.0 - r2).sqrt() as f32))
+            } else {
+                None
+            });
+        }
+    }
+    cells
+}
+
+/// Writes the three panels side by side: expected counts, observed counts (one linear
+/// viridis scale from 0 to the largest count of either), and (n − e)/√e on RdBu over
+/// ±[`RESIDUAL_RANGE`]; a colour bar under each.
+pub(crate) fn write_png(path: &Path, grid: CellGrid, report: &Report) -> image::ImageResult<()> {
+    let width = 3 * PANEL + 4 * MARGIN;
+    let height = PANEL + BAR + 3 * MARGIN;
+    let mut img = image::RgbImage::from_pixel(width, height, image::Rgb(BACKGROUND));
+    let vmax = report
+        .observed
+        .iter()
+        .map(|&o| o as f64)
+        .chain(report.expected.iter().copied())
+        .fold(0.0f64, f64::max)
+        .max(1.0);
+    let residual = residuals(report);
+    let observed: Vec<f64> = report.observed.iter().map(|&o| o as f64).collect();
+    let panels: [Panel<'_>; 3] = [
+        (&report.expected, &VIRIDIS, 0.0, vmax),
+        (&observed, &VIRIDIS, 0.0, vmax),
+        (&residual, &RDBU, -RESIDUAL_RANGE, RESIDUAL_RANGE),
+    ];
+    let cells = cell_map(grid);
+    for (k, (values, stops, lo, hi)) in panels.into_iter().enumerate() {
+        let x0 = MARGIN + k as u32 * (PANEL + MARGIN);
+        let t = |v: f64| (v - lo) / (hi - lo);
+        for j in 0..PANEL {
+            for i in 0..PANEL {
+                let colour = match cells[(j * PANEL + i) as usize] {
+                    Some(c) => lookup(stops, t(values[c])),
+                    None => OFF_DISK,
+                };
+                img.put_pixel(x0 + i, MARGIN + j, image::Rgb(colour));
+            }
+        }
+        for i in 0..PANEL {
+            let colour = lookup(stops, (f64::from(i) + 0.5) / f64::from(PANEL));
+            for j in 0..BAR {
+                img.put_pixel(x0 + i, 2 * MARGIN + PANEL + j, image::Rgb(colour));
+            }
+        }
+    }
+    img.save_with_format(path, image::ImageFormat::Png)
+}
+
+/// Writes the raw per-cell arrays as one EXR layer of `cols × rows` f32 pixels with the
+/// channels `expected`, `expected_own`, `mass`, `observed` and `residual`. Square grids put
+/// y = +1 in the top row (as the PNG); polar grids have one row per ring, the centre first,
+/// and one column per sector from φ = 0.
+pub(crate) fn write_exr(
+    path: &Path,
+    grid: CellGrid,
+    report: &Report,
+    mass: &[f64],
+) -> exr::error::UnitResult {
+    use exr::prelude::*;
+    let (rows, cols) = grid.dims();
+    let order: Vec<usize> = match grid {
+        CellGrid::Square { .. } => (0..rows)
+            .rev()
+            .flat_map(|r| (0..cols).map(move |c| r * cols + c))
+            .collect(),
+        CellGrid::Polar { .. } => (0..rows * cols).collect(),
+    };
+    let channel = |name: &str, values: &dyn Fn(usize) -> f64| {
+        AnyChannel::new(
+            name,
+            FlatSamples::F32(order.iter().map(|&i| values(i) as f32).collect()),
+        )
+    };
+    let residual = residuals(report);
+    let channels = AnyChannels::sort(
+        vec![
+            channel("expected", &|i| report.expected[i]),
+            channel("expected_own", &|i| report.expected_own[i]),
+            channel("mass", &|i| mass[i]),
+            channel("observed", &|i| report.observed[i] as f64),
+            channel("residual", &|i| residual[i]),
+        ]
+        .into(),
+    );
+    let layer = Layer::new(
+        (cols, rows),
+        LayerAttributes::named("brdf test"),
+        Encoding::FAST_LOSSLESS,
+        channels,
+    );
+    Image::from_layer(layer).write().to_file(path)
+}

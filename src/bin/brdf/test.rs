@@ -1,0 +1,394 @@
+//! `brdf test`: the §5 tests of SPEC (the seed's a_i convergence and Pearson χ², against
+//! f·cos and against the sampler's own pdf) for one model and any `--mode` of `brdf sample`.
+
+use crate::CliError;
+use crate::images;
+use crate::sample::{self, SamplerOptions};
+use brdf_sampling::Brdf;
+use brdf_sampling::glam::Vec3;
+use brdf_sampling::quadtree_sampler::validate::{CellGrid, ChiSquare, Report, Validation, sidak};
+use rand_core::SeedableRng;
+use serde_json::{Value, json};
+use std::fmt::Write as _;
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Which cells (`--grid`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum GridArg {
+    /// The seed's R × R squares over [−1,1]².
+    Square,
+    /// The equal-area polar grid: R rings in r² × (2R + 1) sectors in φ.
+    Polar,
+    /// Both grids, one test each.
+    Both,
+}
+
+/// What the verdict judges (`--against`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum Against {
+    /// SPEC §5: the samples must follow f·cos **and** the sampler's own pdf.
+    Fcos,
+    /// Only the sampler's own pdf (for samplers not meant to follow f·cos: an analytic lobe
+    /// sampler, the warp); the χ² against f·cos is still printed.
+    Own,
+}
+
+/// The options of `brdf test`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct TestArgs {
+    /// Incident direction x,y,z (repeat for several). Default: θ = 0°, 45° and 80° at φ = 30°.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    wi: Vec<String>,
+    #[command(flatten)]
+    options: SamplerOptions,
+    /// Samples per test.
+    #[arg(long, default_value_t = 1_000_000)]
+    samples: u64,
+    /// Grid resolution R: R × R squares, or R rings × (2R + 1) sectors.
+    #[arg(long, value_name = "R", default_value_t = 25)]
+    cells: usize,
+    /// Which cell grid(s).
+    #[arg(long, value_enum, default_value_t = GridArg::Both)]
+    grid: GridArg,
+    /// What the verdict judges.
+    #[arg(long, value_enum, default_value_t = Against::Fcos)]
+    against: Against,
+    /// Family-wise significance of the run; each test is judged at Šidák's 1 − (1 − α)^(1/k).
+    #[arg(long, default_value_t = 0.01)]
+    alpha: f64,
+    /// RNG seed (PCG64; every test and every chunk of 65536 samples seeds its own generator
+    /// from it, so the result does not depend on the thread count).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Relative tolerance of the expected cell masses (per cell, relative to the total).
+    #[arg(long, default_value_t = 1e-7)]
+    tol: f64,
+    /// Directory for the images: per test a PNG (expected | observed | (n − e)/√e) and an EXR
+    /// of the raw arrays, and `index.md` with the table.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+/// One finished test.
+struct Row {
+    against: Against,
+    wi: Vec3,
+    grid: CellGrid,
+    report: Report,
+    seconds: f64,
+    images: Vec<PathBuf>,
+}
+
+/// SplitMix64's finaliser: decorrelates the seeds of tests and chunks.
+fn splitmix64(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+impl Row {
+    /// The reasons for the verdict `--against` asks for.
+    fn reasons(&self) -> &[String] {
+        match self.against {
+            Against::Fcos => &self.report.reasons,
+            Against::Own => &self.report.own_reasons,
+        }
+    }
+
+    fn passed(&self) -> bool {
+        self.reasons().is_empty()
+    }
+}
+
+/// The incident directions of a run without `--wi`: θ = 0°, 45°, 80° at φ = 30°.
+fn default_wis() -> Vec<Vec3> {
+    [0.0f64, 45.0, 80.0]
+        .iter()
+        .map(|t| {
+            let (t, p) = (t.to_radians(), 30f64.to_radians());
+            Vec3::new(
+                (t.sin() * p.cos()) as f32,
+                (t.sin() * p.sin()) as f32,
+                t.cos() as f32,
+            )
+        })
+        .collect()
+}
+
+fn angles(w: Vec3) -> (f64, f64) {
+    let w = w.as_dvec3();
+    let theta = w.z.clamp(-1.0, 1.0).acos().to_degrees();
+    let mut phi = w.y.atan2(w.x).to_degrees();
+    if phi < 0.0 {
+        phi += 360.0;
+    }
+    if theta < 1e-9 {
+        (0.0, 0.0)
+    } else {
+        (theta, phi)
+    }
+}
+
+fn grid_name(g: CellGrid) -> String {
+    match g {
+        CellGrid::Square { res } => format!("square {res}×{res}"),
+        CellGrid::Polar { rings, sectors } => format!("polar {rings}×{sectors}"),
+    }
+}
+
+fn grid_slug(g: CellGrid) -> &'static str {
+    match g {
+        CellGrid::Square { .. } => "square",
+        CellGrid::Polar { .. } => "polar",
+    }
+}
+
+/// Runs the tests; returns whether all passed.
+pub(crate) fn run(
+    brdf: &dyn Brdf,
+    params: &[String],
+    args: &TestArgs,
+    mut stdout: impl Write,
+) -> Result<bool, CliError> {
+    if args.samples == 0 {
+        return Err(CliError::Usage("--samples must be at least 1".into()));
+    }
+    if args.cells < 2 || args.cells > 4096 {
+        return Err(CliError::Usage(format!(
+            "--cells {}: the grid resolution must be in [2, 4096]",
+            args.cells
+        )));
+    }
+    if !(args.alpha > 0.0 && args.alpha < 1.0) {
+        return Err(CliError::Usage(format!(
+            "--alpha {}: the significance must be in (0, 1)",
+            args.alpha
+        )));
+    }
+    if !(args.tol > 0.0 && args.tol < 1e-2) {
+        return Err(CliError::Usage(format!(
+            "--tol {}: the tolerance must be in (0, 0.01)",
+            args.tol
+        )));
+    }
+    let wis = if args.wi.is_empty() {
+        default_wis()
+    } else {
+        args.wi
+            .iter()
+            .map(|w| sample::parse_wi(w))
+            .collect::<Result<_, _>>()?
+    };
+    let r = args.cells;
+    let grids: Vec<CellGrid> = match args.grid {
+        GridArg::Square => vec![CellGrid::Square { res: r }],
+        GridArg::Polar => vec![CellGrid::Polar {
+            rings: r,
+            sectors: 2 * r + 1,
+        }],
+        GridArg::Both => vec![
+            CellGrid::Square { res: r },
+            CellGrid::Polar {
+                rings: r,
+                sectors: 2 * r + 1,
+            },
+        ],
+    };
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| CliError::Usage(format!("--out {}: {e}", dir.display())))?;
+    }
+    let tests = wis.len() * grids.len();
+    let alpha = sidak(args.alpha, tests);
+    let mode = format!("{:?}", args.options.mode).to_lowercase();
+    let mut rows = Vec::with_capacity(tests);
+    let mut builds = Vec::with_capacity(wis.len());
+    for (k, &wi) in wis.iter().enumerate() {
+        let built = sample::build(brdf, wi, &args.options)?;
+        builds.push(json!({
+            "wi": [wi.x, wi.y, wi.z],
+            "build_seconds": built.build_seconds,
+            "nodes": built.tree.as_ref().map(|t| t.0.nodes),
+            "leaves": built.tree.as_ref().map(|t| t.0.leaves),
+            "max_depth": built.tree.as_ref().map(|t| t.0.max_depth),
+            "expected_trials": built.tree.as_ref().and_then(|t| t.2.as_ref().map(|_| t.0.expected_trials)),
+        }));
+        for (g, &grid) in grids.iter().enumerate() {
+            let t0 = Instant::now();
+            let v = Validation::new(brdf, wi, grid, args.tol)?;
+            let index = (k * grids.len() + g) as u64;
+            let test_seed = splitmix64(args.seed ^ splitmix64(index));
+            let report = v.test_chunked(
+                &*built.sampler,
+                args.samples,
+                |chunk| rand_pcg::Pcg64::seed_from_u64(splitmix64(test_seed ^ splitmix64(chunk))),
+                alpha,
+            );
+            let seconds = t0.elapsed().as_secs_f64();
+            let mut images = Vec::new();
+            if let Some(dir) = &args.out {
+                let stem = format!("{}-{mode}-wi{k}-{}", brdf.name(), grid_slug(grid));
+                let png = dir.join(format!("{stem}.png"));
+                images::write_png(&png, grid, &report)
+                    .map_err(|e| CliError::Usage(format!("writing {}: {e}", png.display())))?;
+                let exr = dir.join(format!("{stem}.exr"));
+                images::write_exr(&exr, grid, &report, v.mass())
+                    .map_err(|e| CliError::Usage(format!("writing {}: {e}", exr.display())))?;
+                images.push(png);
+                images.push(exr);
+            }
+            rows.push(Row {
+                against: args.against,
+                wi,
+                grid,
+                report,
+                seconds,
+                images,
+            });
+        }
+    }
+    let passed = rows.iter().all(Row::passed);
+    let header = format!(
+        "model {}{}{}, sampler {mode}{}, {} samples per test, judged against {}, α = {} over {tests} tests (Šidák: {:.3e} each)",
+        brdf.name(),
+        if params.is_empty() { "" } else { " " },
+        params.join(" "),
+        if args.options.mode == sample::Mode::Rejection {
+            format!(" ({:?} map)", args.options.map).to_lowercase()
+        } else {
+            String::new()
+        },
+        args.samples,
+        match args.against {
+            Against::Fcos => "f·cos and its own pdf",
+            Against::Own => "its own pdf",
+        },
+        args.alpha,
+        alpha
+    );
+    let table = table(&header, &rows);
+    if let Some(dir) = &args.out {
+        let index = dir.join("index.md");
+        std::fs::write(&index, format!("# brdf test\n\n{table}\n{LEGEND}\n"))
+            .map_err(|e| CliError::Usage(format!("writing {}: {e}", index.display())))?;
+    }
+    if args.json {
+        let tests: Vec<Value> = rows.iter().map(row_json).collect();
+        let out = json!({
+            "model": brdf.name(),
+            "params": params,
+            "mode": mode,
+            "against": format!("{:?}", args.against).to_lowercase(),
+            "samples": args.samples,
+            "alpha": args.alpha,
+            "alpha_per_test": alpha,
+            "builds": builds,
+            "tests": tests,
+            "passed": passed,
+        });
+        serde_json::to_writer(&mut stdout, &out).map_err(std::io::Error::from)?;
+        writeln!(stdout)?;
+    } else {
+        write!(stdout, "{table}")?;
+        if args.out.is_some() {
+            writeln!(stdout, "\n{LEGEND}")?;
+        }
+    }
+    Ok(passed)
+}
+
+const LEGEND: &str = "Images: expected | observed counts per cell (viridis, linear from 0 to the \
+largest count) | (n − e)/√e (RdBu, blue = too few, red = too many, saturating at ±4); grey is \
+off the disk. The EXR files hold the raw arrays (channels expected, expected_own, mass, observed, \
+residual).";
+
+fn p_text(c: Option<&ChiSquare>) -> String {
+    c.map_or_else(|| "–".into(), |c| format!("{:.3e}", c.p_value))
+}
+
+fn table(header: &str, rows: &[Row]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "{header}\n");
+    let _ = writeln!(
+        s,
+        "| wi | θ° | φ° | grid | χ² | dof | p | p (own pdf) | a_i/a RMS | noise RMS | a_i/a min–max | s | verdict |"
+    );
+    let _ = writeln!(
+        s,
+        "|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---|---:|---|"
+    );
+    for r in rows {
+        let (theta, phi) = angles(r.wi);
+        let rep = &r.report;
+        let (chi, dof) = rep.chi2.as_ref().map_or_else(
+            || ("–".into(), "–".into()),
+            |c| (format!("{:.1}", c.statistic), c.dof.to_string()),
+        );
+        let (rms, noise, range) = rep.spread.as_ref().map_or_else(
+            || ("–".into(), "–".into(), "–".into()),
+            |s| {
+                (
+                    format!("{:.4}", s.rms),
+                    format!("{:.4}", s.noise),
+                    format!("{:.3}–{:.3}", s.min, s.max),
+                )
+            },
+        );
+        let _ = writeln!(
+            s,
+            "| {:.4},{:.4},{:.4} | {theta:.1} | {phi:.1} | {} | {chi} | {dof} | {} | {} | {rms} | {noise} | {range} | {:.2} | {} |",
+            r.wi.x,
+            r.wi.y,
+            r.wi.z,
+            grid_name(r.grid),
+            p_text(rep.chi2.as_ref()),
+            p_text(rep.chi2_own.as_ref()),
+            r.seconds,
+            if r.passed() { "pass" } else { "REJECT" }
+        );
+    }
+    for (k, r) in rows.iter().enumerate() {
+        for reason in r.reasons() {
+            let _ = writeln!(s, "\nrow {}: {reason}", k + 1);
+        }
+    }
+    s
+}
+
+fn chi_json(c: Option<&ChiSquare>) -> Value {
+    c.map_or(
+        Value::Null,
+        |c| json!({"statistic": c.statistic, "dof": c.dof, "p_value": c.p_value, "bins": c.bins}),
+    )
+}
+
+fn row_json(r: &Row) -> Value {
+    let rep = &r.report;
+    let (theta, phi) = angles(r.wi);
+    let (rows, cols) = r.grid.dims();
+    json!({
+        "wi": [r.wi.x, r.wi.y, r.wi.z],
+        "theta_deg": theta,
+        "phi_deg": phi,
+        "grid": {"kind": grid_slug(r.grid), "rows": rows, "cols": cols},
+        "chi2": chi_json(rep.chi2.as_ref()),
+        "chi2_own": chi_json(rep.chi2_own.as_ref()),
+        "spread": rep.spread.as_ref().map_or(Value::Null, |s| json!({
+            "a": s.a, "cells": s.cells, "min": s.min, "max": s.max, "rms": s.rms, "noise": s.noise,
+        })),
+        "lost": rep.lost,
+        "outside": rep.outside,
+        "inconsistent": rep.inconsistent,
+        "in_empty_cells": rep.in_empty_cells,
+        "seconds": r.seconds,
+        "passed": r.passed(),
+        "reasons": r.reasons(),
+        "images": r.images.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+    })
+}
