@@ -1,5 +1,5 @@
 //! `brdf`: the command line of SPEC §6, a stable contract that other tools script against.
-//! Errors go to stderr with exit status 2.
+//! Errors go to stderr with exit status 2; a statistical test that rejects exits 1.
 
 mod eval;
 mod images;
