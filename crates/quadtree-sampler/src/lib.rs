@@ -61,6 +61,7 @@ mod config;
 mod encoder;
 mod error;
 mod sampler;
+mod table;
 mod tree;
 pub mod validate;
 mod warp;
@@ -73,5 +74,6 @@ pub use sampler::{
     Baseline, BaselineSampler, DirectionSampler, MAX_TRIALS, QuadtreeSampler, Sample, uniform_f32,
     uniform_f64, weight_luminance,
 };
+pub use table::{DEFAULT_TABLE_RES, TableSampler};
 pub use tree::{LEAF, Node, Quadtree, TreeStats, albedo_of_volume};
 pub use warp::{DEFAULT_MIX, WarpSampler};

@@ -4,8 +4,8 @@ use crate::CliError;
 use brdf_sampling::geometry::{unit_direction, unit_direction_above};
 use brdf_sampling::glam::Vec3;
 use brdf_sampling::quadtree_sampler::{
-    Baseline, BaselineSampler, BuildConfig, DEFAULT_MIX, DirectionSampler, QuadtreeSampler,
-    TreeStats, WarpSampler,
+    Baseline, BaselineSampler, BuildConfig, DEFAULT_MIX, DEFAULT_TABLE_RES, DirectionSampler,
+    QuadtreeSampler, TableSampler, TreeStats, WarpSampler,
 };
 use brdf_sampling::{Brdf, DiskMap};
 use rand_core::SeedableRng;
@@ -26,6 +26,9 @@ pub(crate) enum Mode {
     Cosine,
     /// The model's own sampler (cosine for models without one).
     Analytic,
+    /// A piecewise-constant 256² table over the concentric square (marginal/conditional), the
+    /// tabulated baseline renderers use.
+    Table,
 }
 
 /// The map of the quadtree (`--map`).
@@ -120,6 +123,14 @@ pub(crate) fn build<'a>(
         Mode::Uniform => baseline(Baseline::Uniform),
         Mode::Cosine => baseline(Baseline::Cosine),
         Mode::Analytic => baseline(Baseline::Analytic),
+        Mode::Table => {
+            let t = TableSampler::new(brdf, wi, DEFAULT_TABLE_RES)?;
+            Ok(Built {
+                sampler: Box::new(t),
+                tree: None,
+                build_seconds: t0.elapsed().as_secs_f64(),
+            })
+        }
         Mode::Warp => {
             let config = BuildConfig {
                 target_trials: args.target_trials,
