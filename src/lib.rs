@@ -7,6 +7,7 @@
 //! - [`brdf_core`] (re-exported at the root too): BRDF models, the [`Brdf`] trait, the
 //!   [`registry`], frames, disk maps and analytic warps. `no_std` + `alloc`.
 //! - [`quadtree_sampler`]: the seed's quadtree and its samplers.
+//! - [`bench`]: the model sets and the environment the benchmarks share.
 //!
 //! ```
 //! use brdf_sampling::{Brdf, registry};
@@ -17,6 +18,8 @@
 //! let s = phong.sample(wi, 0.5, Vec2::new(0.3, 0.7)).unwrap();
 //! assert!(s.wo.z > 0.0 && s.pdf > 0.0);
 //! ```
+
+pub mod bench;
 
 pub use brdf_core;
 pub use brdf_core::*;

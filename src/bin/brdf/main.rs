@@ -1,6 +1,7 @@
 //! `brdf`: the command line of SPEC §6, a stable contract that other tools script against.
 //! Errors go to stderr with exit status 2; a statistical test that rejects exits 1.
 
+mod bench;
 mod eval;
 mod images;
 mod models;
@@ -60,6 +61,13 @@ enum Command {
         model: ModelArgs,
         #[command(flatten)]
         sampler: sample::SamplerArgs,
+    },
+    /// The performance report: sampling cost and efficiency (1/(variance × time)) of the
+    /// quadtree against cosine, analytic and table sampling under a sky-and-sun environment,
+    /// build time and rayon speedup, E[T] and bytes per node, as ratios from one run.
+    Bench {
+        #[command(flatten)]
+        bench: bench::BenchArgs,
     },
     /// The validation of SPEC §5 for any sampler: histogram --samples directions over a cell
     /// grid and compare with ∫f·cos per cell (the seed's a_i spread, Pearson χ²) and with the
@@ -157,6 +165,7 @@ fn run(cli: Cli) -> Result<Outcome, CliError> {
             let brdf = model.build()?;
             sample::run_pdf(&*brdf, &sampler, std::io::stdin().lock(), stdout)
         }
+        Command::Bench { bench } => bench::run(&bench, stdout),
         Command::Test { model, test } => {
             let brdf = model.build()?;
             let passed = test::run(&*brdf, &model.params, &test, stdout)?;

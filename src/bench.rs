@@ -1,0 +1,181 @@
+//! What the benchmarks share (the criterion benches, `brdf bench`, the furnace example): the
+//! model sets, the incident direction, and a procedural environment to estimate reflected
+//! radiance under.
+
+use crate::glam::Vec3;
+use crate::quadtree_sampler::DirectionSampler;
+use crate::{Brdf, ParamError, registry};
+use rand_core::SeedableRng;
+use std::time::Instant;
+
+/// (label, model, parameters): every model with a continuous part, at its defaults and with a
+/// sharp lobe where it has one. The glossy targets of issue #7 are `phong-sharp`
+/// (n = 1000), `ward-sharp` (α = 0.05) and `cook-torrance-sharp` (m = 0.1).
+pub const SETS: &[(&str, &str, &[&str])] = &[
+    ("lambert", "lambert", &[]),
+    ("phong", "phong", &[]),
+    ("phong-sharp", "phong", &["n=1000", "kd=0"]),
+    ("blinn-phong", "blinn-phong", &[]),
+    ("blinn-phong-sharp", "blinn-phong", &["n=1000", "kd=0"]),
+    ("lewis-phong", "lewis-phong", &[]),
+    ("lewis-phong-sharp", "lewis-phong", &["n=1000", "kd=0"]),
+    ("cook-torrance", "cook-torrance", &[]),
+    ("cook-torrance-sharp", "cook-torrance", &["m=0.1"]),
+    ("htsg", "htsg", &[]),
+    ("htsg-sharp", "htsg", &["sigma0=0.0318", "tau=0.3"]),
+    ("poulin-fournier", "poulin-fournier", &[]),
+    ("poulin-fournier-sharp", "poulin-fournier", &["n=1000"]),
+    ("oren-nayar", "oren-nayar", &[]),
+    ("oren-nayar-rough", "oren-nayar", &["sigma=1.5"]),
+    ("ward", "ward", &[]),
+    (
+        "ward-sharp",
+        "ward",
+        &["alpha_x=0.05", "alpha_y=0.05", "kd=0"],
+    ),
+    ("schlick", "schlick", &[]),
+    ("schlick-sharp", "schlick", &["r=0.01"]),
+    ("strauss", "strauss", &[]),
+    ("strauss-sharp", "strauss", &["smoothness=0.9"]),
+];
+
+/// The sets `brdf bench --quick` measures: one diffuse, the three glossy targets, and the two
+/// models without an analytic sampler.
+pub const QUICK_SETS: &[&str] = &[
+    "lambert",
+    "phong-sharp",
+    "cook-torrance-sharp",
+    "ward-sharp",
+    "htsg",
+    "poulin-fournier",
+];
+
+/// Models whose eval costs microseconds: a target-trials build takes minutes on 2 cores.
+pub const COSTLY: &[&str] = &["htsg", "poulin-fournier"];
+
+/// Builds a set's model.
+pub fn model(name: &str, params: &[&str]) -> Result<Box<dyn Brdf>, ParamError> {
+    registry::create(name, params.iter().copied())
+}
+
+/// The incident (viewing) direction of the benches: θ = 45°, φ = 30°.
+#[must_use]
+pub fn wi() -> Vec3 {
+    let (t, p) = (45f32.to_radians(), 30f32.to_radians());
+    Vec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
+}
+
+/// A procedural environment in the local frame: a sky whose radiance grows from 0.2 at the
+/// horizon to 1 at the zenith, plus a sun of angular radius 2° and radiance 2000 (about 2.5
+/// times the sky's irradiance). [`Environment::default`] puts the sun at θ = 60°, φ = 120°,
+/// far from the mirror direction of [`wi`] (θ = 45°, φ = 210°): a glossy lobe sees the sky, a
+/// diffuse one the sun too. [`Environment::glint`] puts it about 6° from the mirror direction,
+/// in the tails of the glossy lobes, where BRDF sampling alone is at its weakest.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Environment {
+    /// Unit direction toward the sun's centre.
+    pub sun: Vec3,
+    /// cos of the sun's angular radius.
+    pub sun_cos_radius: f32,
+    /// Radiance inside the sun's disk (added to the sky).
+    pub sun_radiance: f64,
+}
+
+impl Default for Environment {
+    fn default() -> Self {
+        Self::with_sun(60.0, 120.0)
+    }
+}
+
+impl Environment {
+    /// The sun at (θ, φ) in degrees.
+    #[must_use]
+    pub fn with_sun(theta_deg: f32, phi_deg: f32) -> Self {
+        let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
+        Self {
+            sun: Vec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos()),
+            sun_cos_radius: 2f32.to_radians().cos(),
+            sun_radiance: 2000.0,
+        }
+    }
+
+    /// The sun at θ = 40°, φ = 215°, about 6° from the mirror direction of [`wi`].
+    #[must_use]
+    pub fn glint() -> Self {
+        Self::with_sun(40.0, 215.0)
+    }
+
+    /// Radiance arriving from direction `w` (unit, local frame); 0 below the horizon.
+    #[must_use]
+    pub fn radiance(&self, w: Vec3) -> f64 {
+        if !(w.z > 0.0) {
+            return 0.0;
+        }
+        let sky = 0.2 + 0.8 * f64::from(w.z);
+        if w.dot(self.sun) >= self.sun_cos_radius {
+            sky + self.sun_radiance
+        } else {
+            sky
+        }
+    }
+}
+
+/// One sampler's estimate of the reflected radiance ∫ f_r L cos θ dω (luminance).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Estimate {
+    /// Samples drawn.
+    pub samples: u64,
+    /// The mean of the one-sample estimator Y(weight)·L(wo).
+    pub mean: f64,
+    /// The variance of the one-sample estimator (N samples per estimate: divide by N).
+    pub variance: f64,
+    /// Seconds per sample of drawing and scoring (one thread).
+    pub seconds_per_sample: f64,
+}
+
+impl Estimate {
+    /// Efficiency 1/(variance · time per sample), with `build_seconds` amortised over
+    /// `amortise` samples. It does not depend on the samples per estimate N: variance falls
+    /// as 1/N while time grows as N.
+    #[must_use]
+    pub fn efficiency(&self, build_seconds: f64, amortise: f64) -> f64 {
+        1.0 / (self.variance * (self.seconds_per_sample + build_seconds / amortise))
+    }
+}
+
+/// Draws `samples` directions from `sampler` (one thread, PCG64 from `seed`) and scores each
+/// by Y(weight)·L(wo) under every environment of `envs` (the same samples for all); a
+/// sample the sampler gives no direction for scores 0.
+pub fn estimate(
+    sampler: &dyn DirectionSampler,
+    envs: &[Environment],
+    samples: u64,
+    seed: u64,
+) -> Vec<Estimate> {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let mut sums = vec![(0.0f64, 0.0f64); envs.len()];
+    let t0 = Instant::now();
+    for _ in 0..samples {
+        if let Some(s) = sampler.sample(&mut rng) {
+            let w = f64::from(crate::geometry::luminance(s.weight));
+            for (acc, env) in sums.iter_mut().zip(envs) {
+                let y = w * env.radiance(s.wo);
+                acc.0 += y;
+                acc.1 += y * y;
+            }
+        }
+    }
+    let seconds = t0.elapsed().as_secs_f64();
+    let n = samples.max(1) as f64;
+    sums.iter()
+        .map(|&(sum, sum2)| {
+            let mean = sum / n;
+            Estimate {
+                samples,
+                mean,
+                variance: (sum2 / n - mean * mean).max(0.0) * n / (n - 1.0).max(1.0),
+                seconds_per_sample: seconds / n,
+            }
+        })
+        .collect()
+}

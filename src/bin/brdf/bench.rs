@@ -1,0 +1,268 @@
+//! `brdf bench`: the performance report of issue #7 in one process — sampling cost and
+//! efficiency of the quadtree against cosine, the model's analytic sampler and the 256²
+//! table; build time on one thread and with rayon; E[T] and bytes per node. Every figure is
+//! a ratio measured in the same run (the machines are 2-core and noisy).
+
+use crate::CliError;
+use brdf_sampling::bench::{self, Environment, Estimate};
+use brdf_sampling::quadtree_sampler::{
+    Baseline, BaselineSampler, BuildConfig, DEFAULT_MIX, DEFAULT_TABLE_RES, DirectionSampler,
+    QuadtreeSampler, TableSampler, WarpSampler,
+};
+use serde_json::{Value, json};
+use std::io::Write;
+use std::time::Instant;
+
+/// Samples a build is amortised over in the efficiency figures.
+const AMORTISE: f64 = 1e6;
+
+/// The options of `brdf bench`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct BenchArgs {
+    /// Six sets (diffuse, the three glossy targets, htsg, poulin-fournier), 10⁵ samples per
+    /// sampler: under a minute.
+    #[arg(long)]
+    quick: bool,
+    /// Print one JSON object instead of the markdown table.
+    #[arg(long)]
+    json: bool,
+    /// Samples per sampler and set (default 10⁶, or 10⁵ with --quick).
+    #[arg(long)]
+    samples: Option<u64>,
+    /// Only the sets whose label contains this (see `brdf_sampling::bench::SETS`).
+    #[arg(long)]
+    only: Option<String>,
+    /// RNG seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+/// Times `f`, repeated until 0.2 s have passed (at least once, at most 20 times); the
+/// fastest run.
+fn fastest<T>(mut f: impl FnMut() -> T) -> (T, f64) {
+    let start = Instant::now();
+    let mut best = f64::INFINITY;
+    let mut out = None;
+    for _ in 0..20 {
+        let t0 = Instant::now();
+        let v = f();
+        best = best.min(t0.elapsed().as_secs_f64());
+        out = Some(v);
+        if start.elapsed().as_secs_f64() > 0.2 {
+            break;
+        }
+    }
+    (out.expect("one run"), best)
+}
+
+struct Measured {
+    name: &'static str,
+    build_seconds: f64,
+    /// Under the default environment, then the glint one.
+    estimates: Vec<Estimate>,
+}
+
+impl Measured {
+    fn efficiency(&self, env: usize) -> f64 {
+        self.estimates[env].efficiency(self.build_seconds, AMORTISE)
+    }
+
+    fn ns(&self) -> f64 {
+        self.estimates[0].seconds_per_sample * 1e9
+    }
+
+    fn json(&self) -> Value {
+        let per_env = |k: usize| {
+            json!({
+                "mean": self.estimates[k].mean,
+                "variance": self.estimates[k].variance,
+                "efficiency": self.efficiency(k),
+            })
+        };
+        json!({
+            "sampler": self.name,
+            "build_seconds": self.build_seconds,
+            "ns_per_sample": self.ns(),
+            "sky_and_sun": per_env(0),
+            "glint": per_env(1),
+        })
+    }
+}
+
+pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliError> {
+    let samples = args
+        .samples
+        .unwrap_or(if args.quick { 100_000 } else { 1_000_000 });
+    if samples < 2 {
+        return Err(CliError::Usage("--samples must be at least 2".into()));
+    }
+    let envs = [Environment::default(), Environment::glint()];
+    let wi = bench::wi();
+    let serial = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .map_err(|e| CliError::Usage(format!("thread pool: {e}")))?;
+    let threads = rayon::current_num_threads();
+    let mut rows = Vec::new();
+    let mut table = String::new();
+    for &(label, name, params) in bench::SETS {
+        if args.quick && !bench::QUICK_SETS.contains(&label) {
+            continue;
+        }
+        if args
+            .only
+            .as_ref()
+            .is_some_and(|o| !label.contains(o.as_str()))
+        {
+            continue;
+        }
+        let brdf = bench::model(name, params)?;
+        let b = &*brdf;
+        let config = BuildConfig::default();
+        let (_, build_serial) = fastest(|| serial.install(|| QuadtreeSampler::new(b, wi, config)));
+        let (q, build_parallel) = fastest(|| QuadtreeSampler::new(b, wi, config));
+        let q = q?;
+        let stats = q.stats();
+        let mut measured = Vec::new();
+        let mut measure = |name: &'static str, build: f64, s: &dyn DirectionSampler| {
+            measured.push(Measured {
+                name,
+                build_seconds: build,
+                estimates: bench::estimate(s, &envs, samples, args.seed),
+            });
+        };
+        measure("quadtree", build_serial, &q);
+        let target = if bench::COSTLY.contains(&name) {
+            None
+        } else {
+            let config = BuildConfig {
+                target_trials: Some(1.25),
+                ..BuildConfig::default()
+            };
+            let t0 = Instant::now();
+            let t = serial.install(|| QuadtreeSampler::new(b, wi, config))?;
+            let build = t0.elapsed().as_secs_f64();
+            measure("quadtree-target-1.25", build, &t);
+            Some(t.stats())
+        };
+        let t0 = Instant::now();
+        let w = serial.install(|| WarpSampler::new(b, wi, BuildConfig::default(), DEFAULT_MIX))?;
+        measure("warp", t0.elapsed().as_secs_f64(), &w);
+        for (label, kind) in [
+            ("cosine", Baseline::Cosine),
+            ("analytic", Baseline::Analytic),
+        ] {
+            measure(label, 0.0, &BaselineSampler::new(b, wi, kind)?);
+        }
+        let t0 = Instant::now();
+        let t = TableSampler::new(b, wi, DEFAULT_TABLE_RES)?;
+        measure("table", t0.elapsed().as_secs_f64(), &t);
+        let get = |n: &str| measured.iter().find(|m| m.name == n);
+        let (qm, cos, ana, tab) = (
+            get("quadtree").expect("measured"),
+            get("cosine").expect("measured"),
+            get("analytic").expect("measured"),
+            get("table").expect("measured"),
+        );
+        let ns = Measured::ns;
+        let eff = |a: &Measured, b: &Measured| a.efficiency(0) / b.efficiency(0);
+        let glint = |a: &Measured, b: &Measured| a.efficiency(1) / b.efficiency(1);
+        let bytes_per_node = stats.bytes as f64 / stats.nodes.max(1) as f64;
+        let speedup = build_serial / build_parallel;
+        let tgt = get("quadtree-target-1.25");
+        rows.push(json!({
+            "set": label,
+            "model": name,
+            "params": params,
+            "nodes": stats.nodes,
+            "leaves": stats.leaves,
+            "expected_trials": stats.expected_trials,
+            "bytes_per_node": bytes_per_node,
+            "build_seconds_serial": build_serial,
+            "build_seconds_rayon": build_parallel,
+            "rayon_speedup": speedup,
+            "target_expected_trials": target.as_ref().map(|s| s.expected_trials),
+            "target_nodes": target.as_ref().map(|s| s.nodes),
+            "samplers": measured.iter().map(Measured::json).collect::<Vec<_>>(),
+            "ratios": {
+                "time_quadtree_over_analytic": ns(qm) / ns(ana),
+                "efficiency_quadtree_over_cosine": eff(qm, cos),
+                "efficiency_quadtree_over_analytic": eff(qm, ana),
+                "efficiency_quadtree_over_table": eff(qm, tab),
+                "efficiency_target_over_analytic": tgt.map(|t| eff(t, ana)),
+                "glint_efficiency_quadtree_over_cosine": glint(qm, cos),
+                "glint_efficiency_quadtree_over_analytic": glint(qm, ana),
+            },
+        }));
+        let opt = |v: Option<f64>, p: usize| v.map_or_else(|| "–".into(), |v| format!("{v:.p$}"));
+        use std::fmt::Write as _;
+        let _ = writeln!(
+            table,
+            "| {label} | {} | {:.2} | {bytes_per_node:.0} | {:.1} | {speedup:.2} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2} | {} | {} | {} | {} | {} | {} |",
+            stats.nodes,
+            stats.expected_trials,
+            build_serial * 1e3,
+            ns(qm),
+            ns(ana),
+            ns(cos),
+            ns(tab),
+            ns(qm) / ns(ana),
+            ratio(eff(qm, cos)),
+            ratio(eff(qm, ana)),
+            ratio(eff(qm, tab)),
+            opt(tgt.map(|t| eff(t, ana)), 2),
+            ratio(glint(qm, cos)),
+            ratio(glint(qm, ana)),
+        );
+    }
+    if args.json {
+        let out = json!({
+            "wi": [wi.x, wi.y, wi.z],
+            "environments": envs.iter().zip(["sky_and_sun", "glint"]).map(|(e, n)| json!({
+                "name": n,
+                "sky": "0.2 + 0.8 cos θ",
+                "sun": [e.sun.x, e.sun.y, e.sun.z],
+                "sun_cos_radius": e.sun_cos_radius,
+                "sun_radiance": e.sun_radiance,
+            })).collect::<Vec<_>>(),
+            "samples": samples,
+            "amortise_build_over": AMORTISE,
+            "threads": threads,
+            "sets": rows,
+        });
+        serde_json::to_writer(&mut stdout, &out).map_err(std::io::Error::from)?;
+        writeln!(stdout)?;
+    } else {
+        writeln!(
+            stdout,
+            "wi θ = 45°, φ = 30°; sky 0.2 + 0.8 cos θ plus a 2° sun at θ = 60°, φ = 120° (glint: \
+at θ = 40°, φ = 215°, 6° from the mirror direction); \
+{samples} samples per sampler; builds on 1 thread amortised over {AMORTISE:.0e} samples; \
+rayon speedup on {threads} threads; efficiency = 1/(variance × time per sample).\n"
+        )?;
+        writeln!(
+            stdout,
+            "| set | nodes | E[T] | B/node | build ms | rayon × | ns/sample quadtree | analytic | cosine | table | time quadtree/analytic | efficiency quadtree/cosine | /analytic | /table | target-1.25/analytic | glint: quadtree/cosine | glint: /analytic |"
+        )?;
+        writeln!(
+            stdout,
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        )?;
+        write!(stdout, "{table}")?;
+    }
+    Ok(())
+}
+
+/// A ratio with 3 significant digits.
+fn ratio(r: f64) -> String {
+    if !r.is_finite() {
+        return format!("{r}");
+    }
+    if r >= 100.0 {
+        format!("{r:.0}")
+    } else if r >= 10.0 {
+        format!("{r:.1}")
+    } else {
+        format!("{r:.2}")
+    }
+}
