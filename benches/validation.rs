@@ -38,12 +38,7 @@ fn bench(c: &mut Criterion) {
             group.bench_function(BenchmarkId::from_parameter(id), |bench| {
                 bench.iter(|| {
                     let v = Validation::new(&*brdf, wi, grid, 1e-7).unwrap();
-                    black_box(v.test_chunked(
-                        &q,
-                        SAMPLES,
-                        |k| rand_pcg::Pcg64::seed_from_u64(k),
-                        0.01,
-                    ))
+                    black_box(v.test_chunked(&q, SAMPLES, rand_pcg::Pcg64::seed_from_u64, 0.01))
                 });
             });
         }

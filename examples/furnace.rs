@@ -120,7 +120,7 @@ fn render(
                     let wo = warp::sample_cosine_hemisphere(u);
                     (wo, warp::cosine_hemisphere_pdf(wo.z))
                 };
-                if !(pdf > 0.0) || wo.z <= 0.0 {
+                if pdf.is_nan() || pdf <= 0.0 || wo.z <= 0.0 {
                     continue;
                 }
                 let f = f64::from(luminance(brdf.eval(wi, wo)));

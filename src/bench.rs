@@ -108,7 +108,7 @@ impl Environment {
     /// Radiance arriving from direction `w` (unit, local frame); 0 below the horizon.
     #[must_use]
     pub fn radiance(&self, w: Vec3) -> f64 {
-        if !(w.z > 0.0) {
+        if w.z.is_nan() || w.z <= 0.0 {
             return 0.0;
         }
         let sky = 0.2 + 0.8 * f64::from(w.z);

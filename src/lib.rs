@@ -7,7 +7,7 @@
 //! - [`brdf_core`] (re-exported at the root too): BRDF models, the [`Brdf`] trait, the
 //!   [`registry`], frames, disk maps and analytic warps. `no_std` + `alloc`.
 //! - [`quadtree_sampler`]: the seed's quadtree and its samplers.
-//! - [`bench`]: the model sets and the environment the benchmarks share.
+//! - [`mod@bench`]: the model sets and the environment the benchmarks share.
 //!
 //! ```
 //! use brdf_sampling::{Brdf, registry};

@@ -483,3 +483,63 @@ fn sample_and_pdf_reject_bad_input_with_status_2() {
     }
     std::fs::remove_file(&out).ok();
 }
+
+/// `brdf bench --json` reports every figure it promises, and its estimators agree: each
+/// sampler's mean reflected radiance is within 5 standard errors of the quadtree's.
+#[test]
+fn bench_reports_ratios_from_unbiased_estimates() {
+    let o = brdf(
+        &[
+            "bench",
+            "--only",
+            "lambert",
+            "--samples",
+            "200000",
+            "--json",
+        ],
+        "",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let sets = v["sets"].as_array().unwrap();
+    assert_eq!(sets.len(), 1);
+    let set = &sets[0];
+    for key in ["expected_trials", "bytes_per_node", "rayon_speedup"] {
+        assert!(set[key].as_f64().unwrap() > 0.0, "{key}: {set}");
+    }
+    for key in [
+        "time_quadtree_over_analytic",
+        "efficiency_quadtree_over_cosine",
+        "efficiency_quadtree_over_analytic",
+        "efficiency_quadtree_over_table",
+    ] {
+        let r = set["ratios"][key].as_f64().unwrap();
+        assert!(r.is_finite() && r > 0.0, "{key}: {r}");
+    }
+    let samplers = set["samplers"].as_array().unwrap();
+    let n = 200_000.0;
+    for env in ["sky_and_sun", "glint"] {
+        let q = samplers
+            .iter()
+            .find(|s| s["sampler"] == "quadtree")
+            .unwrap();
+        let (qm, qv) = (
+            q[env]["mean"].as_f64().unwrap(),
+            q[env]["variance"].as_f64().unwrap(),
+        );
+        for s in samplers {
+            let (m, var) = (
+                s[env]["mean"].as_f64().unwrap(),
+                s[env]["variance"].as_f64().unwrap(),
+            );
+            let se = ((qv + var) / n).sqrt();
+            assert!(
+                (m - qm).abs() < 5.0 * se,
+                "{env} {}: {m} vs quadtree {qm} (SE {se})",
+                s["sampler"]
+            );
+        }
+    }
+    let o = brdf(&["bench", "--samples", "1"], "");
+    assert_eq!(o.status.code(), Some(2));
+}

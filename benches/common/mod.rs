@@ -1,6 +1,6 @@
 //! What the criterion benches share beyond `brdf_sampling::bench`.
 
-#![allow(dead_code)]
+#![allow(dead_code, unused_imports)]
 
 pub use brdf_sampling::bench::{COSTLY, SETS, wi};
 
