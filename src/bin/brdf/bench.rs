@@ -1,6 +1,6 @@
 //! `brdf bench`: the performance report of issue #7 in one process — sampling cost and
 //! efficiency of the quadtree against cosine, the model's analytic sampler and the 256²
-//! table; build time on one thread and with rayon; E[T] and bytes per node. Every figure is
+//! table; build time on one thread and with rayon; E\[T\] and bytes per node. Every figure is
 //! a ratio measured in the same run (the machines are 2-core and noisy).
 
 use crate::CliError;
