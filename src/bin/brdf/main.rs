@@ -64,7 +64,7 @@ enum Command {
     },
     /// The performance report: sampling cost and efficiency (1/(variance × time)) of the
     /// quadtree against cosine, analytic and table sampling under a sky-and-sun environment,
-    /// build time and rayon speedup, E\[T\] and bytes per node, as ratios from one run.
+    /// build time and rayon speedup, expected trials per sample and bytes per node, as ratios from one run.
     Bench {
         #[command(flatten)]
         bench: bench::BenchArgs,
