@@ -2,10 +2,11 @@
 //! (the serial reference) and on all of them; the trees are bit-identical (tested in
 //! crates/quadtree-sampler/tests/quadtree.rs), so the ratio is the rayon speedup.
 
+#[macro_use]
 mod common;
 
 use brdf_sampling::quadtree_sampler::{BuildConfig, QuadtreeSampler};
-use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use criterion::{BenchmarkId, Criterion};
 use std::hint::black_box;
 
 fn bench(c: &mut Criterion) {
@@ -34,9 +35,4 @@ fn bench(c: &mut Criterion) {
     }
 }
 
-criterion_group! {
-    name = benches;
-    config = common::criterion();
-    targets = bench
-}
-criterion_main!(benches);
+bench_main!(bench);

@@ -3,13 +3,14 @@
 //! every model at default and sharp parameters. A batch of 1024 samples per iteration; the
 //! RNG is seeded outside the timed closure.
 
+#[macro_use]
 mod common;
 
 use brdf_sampling::quadtree_sampler::{
     Baseline, BaselineSampler, BuildConfig, DEFAULT_MIX, DEFAULT_TABLE_RES, DirectionSampler,
     QuadtreeSampler, TableSampler, WarpSampler,
 };
-use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::{BenchmarkId, Criterion, Throughput};
 use rand_core::SeedableRng;
 use std::hint::black_box;
 
@@ -72,9 +73,4 @@ fn bench(c: &mut Criterion) {
     }
 }
 
-criterion_group! {
-    name = benches;
-    config = common::criterion();
-    targets = bench
-}
-criterion_main!(benches);
+bench_main!(bench);

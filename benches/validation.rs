@@ -2,11 +2,12 @@
 //! samples from the quadtree, both χ² tests, on the seed's 25² grid and the 25 × 51 polar
 //! grid.
 
+#[macro_use]
 mod common;
 
 use brdf_sampling::quadtree_sampler::validate::{CellGrid, Validation};
 use brdf_sampling::quadtree_sampler::{BuildConfig, QuadtreeSampler};
-use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::{BenchmarkId, Criterion, Throughput};
 use rand_core::SeedableRng;
 use std::hint::black_box;
 
@@ -46,9 +47,4 @@ fn bench(c: &mut Criterion) {
     }
 }
 
-criterion_group! {
-    name = benches;
-    config = common::criterion();
-    targets = bench
-}
-criterion_main!(benches);
+bench_main!(bench);

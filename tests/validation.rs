@@ -182,6 +182,17 @@ suite! {
     suite_strauss_sharp = 17;
 }
 
+/// Asserts the exit status, showing the program's output when it differs.
+fn assert_status(o: &Output, code: i32) {
+    assert_eq!(
+        o.status.code(),
+        Some(code),
+        "stdout: {}\nstderr: {}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
 fn test_args(model: &str, params: &[&str], extra: &[&str]) -> Vec<String> {
     let mut args: Vec<String> = vec!["test".into(), "--model".into(), model.into()];
     for p in params {
@@ -189,6 +200,15 @@ fn test_args(model: &str, params: &[&str], extra: &[&str]) -> Vec<String> {
     }
     args.extend(extra.iter().map(ToString::to_string));
     args
+}
+
+/// A test of a sampler that is exact for its own pdf but does not follow f·cos: the χ²
+/// against f·cos rejects it and says so first, the χ² against its own pdf accepts it.
+fn assert_rejected_by_f_cos_only(t: &serde_json::Value) {
+    assert!(t["chi2"]["p_value"].as_f64().unwrap() < 1e-8, "{t}");
+    assert!(t["chi2_own"]["p_value"].as_f64().unwrap() > 1e-4, "{t}");
+    let first = t["reasons"][0].as_str().unwrap();
+    assert!(first.contains("χ² against f·cos"), "{t}");
 }
 
 /// Negative controls through the command line: baselines that do not follow f·cos are
@@ -210,16 +230,7 @@ fn baselines_that_do_not_follow_f_cos_are_rejected() {
         let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
         for t in v["tests"].as_array().unwrap() {
             assert_eq!(t["passed"], false, "{model} {mode}: {t}");
-            assert!(t["chi2"]["p_value"].as_f64().unwrap() < 1e-8, "{t}");
-            assert!(
-                t["reasons"][0]
-                    .as_str()
-                    .unwrap()
-                    .contains("χ² against f·cos"),
-                "{t}"
-            );
-            // The baseline is exact for its own pdf: the second test accepts it.
-            assert!(t["chi2_own"]["p_value"].as_f64().unwrap() > 1e-4, "{t}");
+            assert_rejected_by_f_cos_only(t);
         }
     }
     let o = brdf(&test_args(
@@ -227,12 +238,7 @@ fn baselines_that_do_not_follow_f_cos_are_rejected() {
         &[],
         &["--mode", "cosine", "--samples", "200000"],
     ));
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stdout)
-    );
+    assert_status(&o, 0);
 }
 
 /// The analytic Phong sampler draws the lobe, not f·cos: judged against f·cos at oblique
@@ -257,25 +263,12 @@ fn analytic_sampler_is_judged_against_both() {
     assert_eq!(o.status.code(), Some(1));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     for t in v["tests"].as_array().unwrap() {
-        assert!(t["chi2"]["p_value"].as_f64().unwrap() < 1e-8, "{t}");
-        assert!(t["chi2_own"]["p_value"].as_f64().unwrap() > 1e-4, "{t}");
-        assert!(
-            t["reasons"][0]
-                .as_str()
-                .unwrap()
-                .contains("χ² against f·cos"),
-            "{t}"
-        );
+        assert_rejected_by_f_cos_only(t);
     }
     let mut own = common.to_vec();
     own.extend(["--against", "own"]);
     let o = brdf(&test_args("phong", &["n=200"], &own));
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stdout)
-    );
+    assert_status(&o, 0);
     // A sampler wrong about its own pdf is rejected by that judgement: the negative control
     // with a pdf off by 5 % in one quadrant is in crates/quadtree-sampler/tests/validate.rs.
 }
@@ -300,12 +293,7 @@ fn images_hold_the_counts() {
             dir.to_str().unwrap(),
         ],
     ));
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    assert_status(&o, 0);
     let table = String::from_utf8(o.stdout).unwrap();
     assert!(table.contains("| pass |"), "{table}");
     assert!(dir.join("index.md").exists());

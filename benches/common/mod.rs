@@ -16,3 +16,15 @@ pub fn criterion() -> criterion::Criterion {
         .warm_up_time(std::time::Duration::from_millis(300))
         .measurement_time(std::time::Duration::from_secs(1))
 }
+
+/// The `main` of a bench file: one criterion group running `$bench` with [`criterion`].
+macro_rules! bench_main {
+    ($bench:path) => {
+        criterion::criterion_group! {
+            name = benches;
+            config = common::criterion();
+            targets = $bench
+        }
+        criterion::criterion_main!(benches);
+    };
+}

@@ -57,6 +57,7 @@ extern crate alloc;
 extern crate std;
 
 pub mod chart;
+pub mod colormap;
 mod config;
 mod encoder;
 mod error;

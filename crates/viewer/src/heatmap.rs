@@ -45,20 +45,10 @@ pub fn luminance_map(brdf: &dyn Brdf, wi: Vec3, res: usize, log: bool) -> ColorI
     ColorImage::new([res, res], pixels)
 }
 
-/// A dark-blue → teal → yellow ramp (viridis-like), t ∈ [0, 1].
+/// Viridis, t ∈ [0, 1].
 fn ramp(t: f32) -> Color32 {
-    const STOPS: [[f32; 3]; 5] = [
-        [68., 1., 84.],
-        [59., 82., 139.],
-        [33., 145., 140.],
-        [94., 201., 98.],
-        [253., 231., 37.],
-    ];
-    let x = t.clamp(0.0, 1.0) * (STOPS.len() - 1) as f32;
-    let i = (x as usize).min(STOPS.len() - 2);
-    let f = x - i as f32;
-    let c = |k: usize| (STOPS[i][k] + (STOPS[i + 1][k] - STOPS[i][k]) * f) as u8;
-    Color32::from_rgb(c(0), c(1), c(2))
+    let [r, g, b] = quadtree_sampler::colormap::viridis(t);
+    Color32::from_rgb(r, g, b)
 }
 
 #[cfg(test)]

@@ -2,6 +2,7 @@
 //! difference over the disk, and an EXR of the raw per-cell arrays.
 
 use brdf_sampling::glam::Vec3;
+use brdf_sampling::quadtree_sampler::colormap;
 use brdf_sampling::quadtree_sampler::validate::{CellGrid, Report};
 use std::path::Path;
 
@@ -18,42 +19,11 @@ const BACKGROUND: [u8; 3] = [32, 32, 32];
 /// Panel pixels outside the unit disk (directions that do not exist).
 const OFF_DISK: [u8; 3] = [56, 56, 56];
 
-/// Viridis at nine evenly spaced stops (sequential, perceptually uniform, colour-blind safe).
-const VIRIDIS: [[f64; 3]; 9] = [
-    [68.0, 1.0, 84.0],
-    [71.0, 44.0, 122.0],
-    [59.0, 81.0, 139.0],
-    [44.0, 113.0, 142.0],
-    [33.0, 144.0, 141.0],
-    [39.0, 173.0, 129.0],
-    [92.0, 200.0, 99.0],
-    [170.0, 220.0, 50.0],
-    [253.0, 231.0, 37.0],
-];
+/// A colour map: t ∈ [0, 1] → sRGB.
+type ColourMap = fn(f32) -> [u8; 3];
 
-/// ColorBrewer's RdBu, blue (too few samples) through white to red (too many).
-const RDBU: [[f64; 3]; 7] = [
-    [33.0, 102.0, 172.0],
-    [67.0, 147.0, 195.0],
-    [209.0, 229.0, 240.0],
-    [247.0, 247.0, 247.0],
-    [253.0, 219.0, 199.0],
-    [214.0, 96.0, 77.0],
-    [178.0, 24.0, 43.0],
-];
-
-/// One panel: per-cell values, the colour stops, and the value range they span.
-type Panel<'a> = (&'a [f64], &'a [[f64; 3]], f64, f64);
-
-/// Piecewise-linear lookup of `t` ∈ [0, 1] in evenly spaced stops.
-fn lookup(stops: &[[f64; 3]], t: f64) -> [u8; 3] {
-    let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) };
-    let x = t * (stops.len() - 1) as f64;
-    let k = (x.floor() as usize).min(stops.len() - 2);
-    let u = x - k as f64;
-    let c = |i: usize| (stops[k][i] + u * (stops[k + 1][i] - stops[k][i])).round() as u8;
-    [c(0), c(1), c(2)]
-}
+/// One panel: per-cell values, the colour map, and the value range it spans.
+type Panel<'a> = (&'a [f64], ColourMap, f64, f64);
 
 /// The standardised residual of every cell, (n − e)/√e; a cell that expects nothing reads
 /// 0 when it got nothing and +∞ otherwise.
@@ -110,25 +80,25 @@ pub(crate) fn write_png(path: &Path, grid: CellGrid, report: &Report) -> image::
     let residual = residuals(report);
     let observed: Vec<f64> = report.observed.iter().map(|&o| o as f64).collect();
     let panels: [Panel<'_>; 3] = [
-        (&report.expected, &VIRIDIS, 0.0, vmax),
-        (&observed, &VIRIDIS, 0.0, vmax),
-        (&residual, &RDBU, -RESIDUAL_RANGE, RESIDUAL_RANGE),
+        (&report.expected, colormap::viridis, 0.0, vmax),
+        (&observed, colormap::viridis, 0.0, vmax),
+        (&residual, colormap::rdbu, -RESIDUAL_RANGE, RESIDUAL_RANGE),
     ];
     let cells = cell_map(grid);
-    for (k, (values, stops, lo, hi)) in panels.into_iter().enumerate() {
+    for (k, (values, map, lo, hi)) in panels.into_iter().enumerate() {
         let x0 = MARGIN + k as u32 * (PANEL + MARGIN);
         let t = |v: f64| (v - lo) / (hi - lo);
         for j in 0..PANEL {
             for i in 0..PANEL {
                 let colour = match cells[(j * PANEL + i) as usize] {
-                    Some(c) => lookup(stops, t(values[c])),
+                    Some(c) => map(t(values[c]) as f32),
                     None => OFF_DISK,
                 };
                 img.put_pixel(x0 + i, MARGIN + j, image::Rgb(colour));
             }
         }
         for i in 0..PANEL {
-            let colour = lookup(stops, (f64::from(i) + 0.5) / f64::from(PANEL));
+            let colour = map((i as f32 + 0.5) / PANEL as f32);
             for j in 0..BAR {
                 img.put_pixel(x0 + i, 2 * MARGIN + PANEL + j, image::Rgb(colour));
             }
