@@ -485,7 +485,10 @@ fn sample_and_pdf_reject_bad_input_with_status_2() {
 }
 
 /// `brdf bench --json` reports every figure it promises, and its estimators agree: each
-/// sampler's mean reflected radiance is within 5 standard errors of the quadtree's.
+/// sampler's mean reflected radiance is within 5 standard errors of the quadtree's. The sun
+/// makes the one-sample variance large, so it takes 2·10⁶ samples for this to see a 10 %
+/// bias (checked: the table sampler with its pdf scaled by 0.9 lands 6.4 SE away; the
+/// correct samplers stay within 2.6 SE).
 #[test]
 fn bench_reports_ratios_from_unbiased_estimates() {
     let o = brdf(
@@ -494,7 +497,7 @@ fn bench_reports_ratios_from_unbiased_estimates() {
             "--only",
             "lambert",
             "--samples",
-            "200000",
+            "2000000",
             "--json",
         ],
         "",
@@ -517,7 +520,7 @@ fn bench_reports_ratios_from_unbiased_estimates() {
         assert!(r.is_finite() && r > 0.0, "{key}: {r}");
     }
     let samplers = set["samplers"].as_array().unwrap();
-    let n = 200_000.0;
+    let n = 2_000_000.0;
     for env in ["sky_and_sun", "glint"] {
         let q = samplers
             .iter()
