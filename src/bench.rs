@@ -2,6 +2,7 @@
 //! model sets, the incident direction, and a procedural environment to estimate reflected
 //! radiance under.
 
+use crate::geometry::spherical_direction;
 use crate::glam::Vec3;
 use crate::quadtree_sampler::DirectionSampler;
 use crate::{Brdf, ParamError, registry};
@@ -61,8 +62,7 @@ pub fn model(name: &str, params: &[&str]) -> Result<Box<dyn Brdf>, ParamError> {
 /// The incident (viewing) direction of the benches: θ = 45°, φ = 30°.
 #[must_use]
 pub fn wi() -> Vec3 {
-    let (t, p) = (45f32.to_radians(), 30f32.to_radians());
-    Vec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
+    spherical_direction(45f32.to_radians(), 30f32.to_radians())
 }
 
 /// A procedural environment in the local frame: a sky whose radiance grows from 0.2 at the
@@ -91,9 +91,8 @@ impl Environment {
     /// The sun at (θ, φ) in degrees.
     #[must_use]
     pub fn with_sun(theta_deg: f32, phi_deg: f32) -> Self {
-        let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
         Self {
-            sun: Vec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos()),
+            sun: spherical_direction(theta_deg.to_radians(), phi_deg.to_radians()),
             sun_cos_radius: 2f32.to_radians().cos(),
             sun_radiance: 2000.0,
         }

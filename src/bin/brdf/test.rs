@@ -5,6 +5,7 @@ use crate::CliError;
 use crate::images;
 use crate::sample::{self, SamplerOptions};
 use brdf_sampling::Brdf;
+use brdf_sampling::geometry::spherical_direction;
 use brdf_sampling::glam::Vec3;
 use brdf_sampling::quadtree_sampler::validate::{CellGrid, ChiSquare, Report, Validation, sidak};
 use rand_core::SeedableRng;
@@ -108,16 +109,9 @@ impl Row {
 
 /// The incident directions of a run without `--wi`: θ = 0°, 45°, 80° at φ = 30°.
 fn default_wis() -> Vec<Vec3> {
-    [0.0f64, 45.0, 80.0]
+    [0.0f32, 45.0, 80.0]
         .iter()
-        .map(|t| {
-            let (t, p) = (t.to_radians(), 30f64.to_radians());
-            Vec3::new(
-                (t.sin() * p.cos()) as f32,
-                (t.sin() * p.sin()) as f32,
-                t.cos() as f32,
-            )
-        })
+        .map(|t| spherical_direction(t.to_radians(), 30f32.to_radians()))
         .collect()
 }
 
