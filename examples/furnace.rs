@@ -13,9 +13,9 @@
 
 use brdf_sampling::Frame;
 use brdf_sampling::bench::Environment;
-use brdf_sampling::geometry::luminance;
-use brdf_sampling::glam::Vec3;
-use brdf_sampling::quadtree_sampler::{BuildConfig, QuadtreeSampler};
+use brdf_sampling::geometry::{luminance, spherical_direction};
+use brdf_sampling::glam::{Vec2, Vec3};
+use brdf_sampling::quadtree_sampler::{BuildConfig, QuadtreeSampler, uniform_f32};
 use brdf_sampling::{Brdf, registry, warp};
 use rand_core::SeedableRng;
 use std::collections::HashMap;
@@ -27,20 +27,34 @@ const SPP_REFERENCE: u32 = 1024;
 /// θi bin width of the tree cache, degrees.
 const BIN_DEG: f32 = 1.0;
 
-/// The camera looks at the unit sphere from `eye` (orthographic); world up is +z, as the
+/// An orthographic camera looking at the unit sphere from `eye`; world up is +z, as the
 /// environment's.
-fn pixel_setup(px: u32, py: u32) -> Option<(Vec3, Vec3)> {
-    let eye = Vec3::new(0.0, -20f32.to_radians().cos(), 20f32.to_radians().sin()).normalize();
-    let right = Vec3::Z.cross(eye).normalize();
-    let up = eye.cross(right);
-    let u = 2.0 * (px as f32 + 0.5) / SIZE as f32 - 1.0;
-    let v = 1.0 - 2.0 * (py as f32 + 0.5) / SIZE as f32;
-    let r2 = u * u + v * v;
-    if r2 >= 0.98 {
-        return None;
+struct Camera {
+    eye: Vec3,
+    right: Vec3,
+    up: Vec3,
+}
+
+impl Camera {
+    fn new() -> Self {
+        let eye = spherical_direction(70f32.to_radians(), -90f32.to_radians());
+        let right = Vec3::Z.cross(eye).normalize();
+        Self {
+            eye,
+            right,
+            up: eye.cross(right),
+        }
     }
-    let n = (u * right + v * up + (1.0 - r2).sqrt() * eye).normalize();
-    Some((n, eye))
+
+    /// The sphere's normal seen through pixel (px, py), or `None` off the sphere (and in a
+    /// thin band at its silhouette, where wi is grazing).
+    fn normal(&self, px: u32, py: u32) -> Option<Vec3> {
+        let u = 2.0 * (px as f32 + 0.5) / SIZE as f32 - 1.0;
+        let v = 1.0 - 2.0 * (py as f32 + 0.5) / SIZE as f32;
+        let r2 = u * u + v * v;
+        (r2 < 0.98)
+            .then(|| (u * self.right + v * self.up + (1.0 - r2).sqrt() * self.eye).normalize())
+    }
 }
 
 struct Trees<'a> {
@@ -56,7 +70,7 @@ impl<'a> Trees<'a> {
             let t = ((bin as f32 + 0.5) * BIN_DEG)
                 .to_radians()
                 .min(89.9f32.to_radians());
-            let wi = Vec3::new(t.sin(), 0.0, t.cos());
+            let wi = spherical_direction(t, 0.0);
             QuadtreeSampler::new(brdf, wi, BuildConfig::default()).expect("a tree")
         })
     }
@@ -85,14 +99,15 @@ fn render(
         vec![0.0f64; (SIZE * SIZE) as usize],
         vec![0.0f64; (SIZE * SIZE) as usize],
     ];
+    let camera = Camera::new();
     let t0 = Instant::now();
     for py in 0..SIZE {
         for px in 0..SIZE {
-            let Some((n, eye)) = pixel_setup(px, py) else {
+            let Some(n) = camera.normal(px, py) else {
                 continue;
             };
             let frame = Frame::from_normal(n).expect("a unit normal");
-            let wi = frame.to_local(eye);
+            let wi = frame.to_local(camera.eye);
             if wi.z <= 1e-4 {
                 continue;
             }
@@ -104,19 +119,17 @@ fn render(
                     w.z,
                 )
             };
+            // The pixel's tree (one per degree of θi), looked up once per pixel.
+            let tree = quadtree.then(|| trees.get(wi.z.clamp(-1.0, 1.0).acos()));
             let mut sum = [0.0f64; 2];
             for _ in 0..spp {
-                let (wo, pdf) = if quadtree {
-                    let tree = trees.get(wi.z.clamp(-1.0, 1.0).acos());
+                let (wo, pdf) = if let Some(tree) = tree {
                     match tree.sample(&mut rng) {
                         Some(s) => (rotate(s.wo), s.pdf),
                         None => continue,
                     }
                 } else {
-                    let u = brdf_sampling::glam::Vec2::new(
-                        quadtree_uniform(&mut rng),
-                        quadtree_uniform(&mut rng),
-                    );
+                    let u = Vec2::new(uniform_f32(&mut rng), uniform_f32(&mut rng));
                     let wo = warp::sample_cosine_hemisphere(u);
                     (wo, warp::cosine_hemisphere_pdf(wo.z))
                 };
@@ -135,10 +148,6 @@ fn render(
         }
     }
     (img, t0.elapsed().as_secs_f64())
-}
-
-fn quadtree_uniform(rng: &mut rand_pcg::Pcg64) -> f32 {
-    brdf_sampling::quadtree_sampler::uniform_f32(rng)
 }
 
 fn rmse(a: &[f64], b: &[f64]) -> f64 {
