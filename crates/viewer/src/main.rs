@@ -1,155 +1,125 @@
-//! `viewer`: the live BRDF sampling laboratory (egui/eframe on wgpu).
-//!
-//! This first version shows f_r(wi, ·) over the seed's square [−1,1]² (the orthographic disk)
-//! for any registry model, with sliders generated from the parameter metadata and the
-//! incident direction as θ/φ sliders. The quadtree, samples and histograms join it as the
-//! sampler and validation crates land.
+//! The `viewer` binary: opens the live BRDF sampling laboratory, or with `--screenshot`
+//! renders one frame of the full window and exits.
 
-mod heatmap;
-
-use brdf_core::registry::{self, ModelInfo};
-use brdf_core::{Brdf, ParamKind, ParamSet, ParamValue, geometry::spherical_direction};
+use clap::Parser;
 use eframe::egui;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+use viewer::{Launch, ViewerApp};
 
-fn main() -> eframe::Result {
-    let options = eframe::NativeOptions {
-        viewport: egui::ViewportBuilder::default()
-            .with_inner_size([1100.0, 720.0])
-            .with_title("brdf-sampling viewer"),
-        ..Default::default()
-    };
-    eframe::run_native(
-        "brdf-sampling viewer",
-        options,
-        Box::new(|_cc| Ok(Box::new(ViewerApp::new()))),
-    )
+/// The live BRDF sampling laboratory: disk subdivision, leaf probabilities, sample
+/// histograms and the lobe, following the incident direction as it moves.
+#[derive(Parser, Debug)]
+#[command(name = "viewer", version)]
+struct Args {
+    /// Render one frame of the full window to this PNG once all work is done, and exit
+    /// (offscreen with wgpu unless --window).
+    #[arg(long, value_name = "FILE")]
+    screenshot: Option<PathBuf>,
+    /// With --screenshot: capture a real window (needs a display, e.g. Xvfb).
+    #[arg(long, requires = "screenshot")]
+    window: bool,
+    /// With --screenshot: also write each view's PNG and the raw maps (EXR) into DIR.
+    #[arg(long, value_name = "DIR", requires = "screenshot")]
+    export: Option<PathBuf>,
+    /// Model to start with (a registry name, as `brdf models` lists).
+    #[arg(long, default_value = "ward")]
+    model: String,
+    /// A parameter as name=value (repeatable), as for `brdf`.
+    #[arg(long = "param", value_name = "NAME=VALUE")]
+    params: Vec<String>,
+    /// Incident direction x,y,z (local frame; normalised; must be above the horizon).
+    #[arg(long, value_name = "X,Y,Z")]
+    wi: Option<String>,
+    /// Samples to draw.
+    #[arg(long, default_value_t = 100_000)]
+    samples: u64,
+    /// Window size in points, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1400x900")]
+    size: String,
+    /// With --screenshot: give up after this many seconds.
+    #[arg(long, default_value_t = 300)]
+    timeout: u64,
 }
 
-/// The whole state of the viewer.
-struct ViewerApp {
-    model: &'static ModelInfo,
-    params: ParamSet,
-    brdf: Result<Box<dyn Brdf>, String>,
-    theta_deg: f32,
-    phi_deg: f32,
-    log_scale: bool,
-    texture: Option<egui::TextureHandle>,
-    dirty: bool,
+fn parse_wi(text: &str) -> Result<glam::Vec3, String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let values: Result<Vec<f32>, _> = parts.iter().map(|p| p.parse::<f32>()).collect();
+    match values {
+        Ok(v) if v.len() == 3 => Ok(glam::Vec3::new(v[0], v[1], v[2])),
+        _ => Err(format!("--wi {text}: expected three numbers x,y,z")),
+    }
 }
 
-impl ViewerApp {
-    fn new() -> Self {
-        let model = registry::find("ward").expect("ward is registered");
-        let mut app = Self {
-            model,
-            params: model.defaults(),
-            brdf: Err(String::new()),
-            theta_deg: 45.0,
-            phi_deg: 0.0,
-            log_scale: false,
-            texture: None,
-            dirty: true,
-        };
-        app.rebuild();
-        app
+fn parse_size(text: &str) -> Result<egui::Vec2, String> {
+    let bad = || format!("--size {text}: expected WIDTHxHEIGHT, each in 200..=8192");
+    let (w, h) = text.split_once('x').ok_or_else(bad)?;
+    let (w, h): (f32, f32) = (
+        w.trim().parse().map_err(|_| bad())?,
+        h.trim().parse().map_err(|_| bad())?,
+    );
+    if (200.0..=8192.0).contains(&w) && (200.0..=8192.0).contains(&h) {
+        Ok(egui::vec2(w, h))
+    } else {
+        Err(bad())
     }
+}
 
-    fn rebuild(&mut self) {
-        self.brdf = self.model.build(&self.params).map_err(|e| e.to_string());
-        self.dirty = true;
+fn run(args: Args) -> Result<(), String> {
+    let launch = Launch {
+        model: args.model,
+        params: args.params,
+        wi: args.wi.as_deref().map(parse_wi).transpose()?,
+        samples: args.samples,
     }
-
-    fn wi(&self) -> glam::Vec3 {
-        spherical_direction(self.theta_deg.to_radians(), self.phi_deg.to_radians())
-    }
-
-    fn controls(&mut self, ui: &mut egui::Ui) {
-        ui.heading("Model");
-        let mut chosen = self.model.name;
-        egui::ComboBox::from_id_salt("model")
-            .selected_text(chosen)
-            .show_ui(ui, |ui| {
-                for m in registry::models() {
-                    ui.selectable_value(&mut chosen, m.name, m.name);
-                }
-            });
-        if chosen != self.model.name {
-            self.model = registry::find(chosen).expect("picked from the registry");
-            self.params = self.model.defaults();
-            self.rebuild();
-        }
-        ui.label(self.model.summary);
-        ui.separator();
-        let mut changed = false;
-        for spec in self.model.params {
-            let value = self.params.get(spec.name).expect("spec of this model");
-            let mut v = value.rgb().to_array();
-            let channels = match spec.kind {
-                ParamKind::Scalar => 1,
-                ParamKind::Rgb => 3,
+    .resolve()?;
+    let size = parse_size(&args.size)?;
+    let timeout = Duration::from_secs(args.timeout);
+    match args.screenshot {
+        Some(path) => {
+            let shot = if args.window {
+                viewer::screenshot::windowed(launch, size, timeout)?
+            } else {
+                viewer::screenshot::offscreen(launch, size, timeout, args.export.as_deref())?
             };
-            ui.horizontal(|ui| {
-                ui.label(spec.name).on_hover_text(spec.doc);
-                for c in v.iter_mut().take(channels) {
-                    let speed = (spec.max - spec.min) / 300.0;
-                    changed |= ui
-                        .add(
-                            egui::DragValue::new(c)
-                                .range(spec.min..=spec.max)
-                                .speed(speed),
-                        )
-                        .changed();
-                }
-            });
-            let new = match spec.kind {
-                ParamKind::Scalar => ParamValue::Scalar(v[0]),
-                ParamKind::Rgb => ParamValue::Rgb(glam::Vec3::from_array(v)),
-            };
-            // Values outside an open range end (e.g. (0, 1]) are refused by `set`: keep the old.
-            let _ = self.params.set(spec.name, new);
-        }
-        if changed {
-            self.rebuild();
-        }
-        ui.separator();
-        ui.heading("Incident direction");
-        self.dirty |= ui
-            .add(egui::Slider::new(&mut self.theta_deg, 0.0..=89.9).text("θi (deg)"))
-            .changed();
-        self.dirty |= ui
-            .add(egui::Slider::new(&mut self.phi_deg, -180.0..=180.0).text("φi (deg)"))
-            .changed();
-        self.dirty |= ui.checkbox(&mut self.log_scale, "log scale").changed();
-        if let Err(e) = &self.brdf {
-            ui.colored_label(egui::Color32::RED, e);
-        }
-    }
-}
-
-impl eframe::App for ViewerApp {
-    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
-        egui::Panel::left("controls")
-            .default_size(300.0)
-            .show(ui, |ui| self.controls(ui));
-        if self.dirty {
-            if let Ok(brdf) = &self.brdf {
-                let image = heatmap::luminance_map(&**brdf, self.wi(), 256, self.log_scale);
-                self.texture = Some(ui.ctx().load_texture(
-                    "f_r",
-                    image,
-                    egui::TextureOptions::NEAREST,
-                ));
-            }
-            self.dirty = false;
-        }
-        egui::CentralPanel::default().show(ui, |ui| {
-            ui.label(
-                "f_r(wi, wo) over the projected disk (the seed's square [-1,1]², x right, y up)",
+            shot.image
+                .save(&path)
+                .map_err(|e| format!("{}: {e}", path.display()))?;
+            println!(
+                "wrote {} ({}x{})",
+                path.display(),
+                shot.image.width(),
+                shot.image.height()
             );
-            if let Some(tex) = &self.texture {
-                let side = ui.available_width().min(ui.available_height()).max(64.0);
-                ui.image((tex.id(), egui::vec2(side, side)));
+            for f in shot.exported {
+                println!("wrote {}", f.display());
             }
-        });
+            Ok(())
+        }
+        None => {
+            let options = eframe::NativeOptions {
+                viewport: egui::ViewportBuilder::default()
+                    .with_inner_size(size)
+                    .with_title("brdf-sampling viewer"),
+                ..Default::default()
+            };
+            eframe::run_native(
+                "brdf-sampling viewer",
+                options,
+                Box::new(move |cc| Ok(Box::new(ViewerApp::new(cc, launch)))),
+            )
+            .map_err(|e| format!("opening the window failed: {e}"))
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    match run(Args::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("viewer: {e}");
+            ExitCode::from(2)
+        }
     }
 }

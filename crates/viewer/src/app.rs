@@ -1,0 +1,940 @@
+//! The viewer's state and UI: controls on the left; the disk view, the 3D lobe and the
+//! three histogram panels in the centre.
+
+use crate::export;
+use crate::lobe::{LobeMesh, LobePaint, LobeResources, OrbitCamera, project};
+use crate::views::{self, Background};
+use crate::worker::{FrMap, Request, SampleState, SamplerKind, Update, Worker};
+use brdf_core::geometry::{spherical_angles, spherical_direction};
+use brdf_core::registry::{self, ModelInfo};
+use brdf_core::{Brdf, DiskMap, ParamKind, ParamSet, ParamValue};
+use eframe::egui::{self, Color32, Rect, Sense, Stroke, TextureHandle, TextureOptions, vec2};
+use eframe::egui_wgpu;
+use glam::{Vec2, Vec3};
+use quadtree_sampler::validate::{CellGrid, ChiSquare, chi_square};
+use quadtree_sampler::{BuildConfig, Quadtree, TreeStats};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, Sender, channel};
+
+/// Largest θi the sliders and the disk drag allow, in degrees.
+pub const MAX_THETA_DEG: f32 = 89.0;
+
+/// Significance of the live χ² verdict (one test).
+pub const ALPHA: f64 = 0.01;
+
+/// How the viewer starts: the model, its parameters and the incident direction.
+#[derive(Clone, Debug)]
+pub struct Launch {
+    /// Registry name of the model.
+    pub model: String,
+    /// `name=value` parameter assignments, as the `brdf` CLI takes them.
+    pub params: Vec<String>,
+    /// Incident direction (local frame); `None`: θ = 45°, φ = 30°.
+    pub wi: Option<Vec3>,
+    /// Samples to draw.
+    pub samples: u64,
+}
+
+impl Default for Launch {
+    fn default() -> Self {
+        Self {
+            model: "ward".into(),
+            params: Vec::new(),
+            wi: None,
+            samples: 100_000,
+        }
+    }
+}
+
+/// A checked [`Launch`]: everything [`ViewerApp::new`] needs, already validated.
+#[derive(Clone, Debug)]
+pub struct Resolved {
+    model: &'static ModelInfo,
+    params: ParamSet,
+    theta_deg: f32,
+    phi_deg: f32,
+    samples: u64,
+}
+
+impl Launch {
+    /// Checks the model name, the parameters and the incident direction; the error says
+    /// which is wrong and why.
+    pub fn resolve(&self) -> Result<Resolved, String> {
+        let model = registry::find(&self.model).map_err(|e| e.to_string())?;
+        let params = model
+            .parse_params(self.params.iter().map(String::as_str))
+            .map_err(|e| e.to_string())?;
+        model.build(&params).map_err(|e| e.to_string())?;
+        let (theta_deg, phi_deg) = match self.wi {
+            Some(wi) => {
+                let wi = brdf_core::geometry::unit_direction_above(wi)
+                    .map_err(|e| format!("--wi: {e}"))?;
+                let (t, p) = spherical_angles(wi);
+                (t.to_degrees().min(MAX_THETA_DEG), p.to_degrees())
+            }
+            None => (45.0, 30.0),
+        };
+        if !(1..=100_000_000).contains(&self.samples) {
+            return Err(format!(
+                "--samples {}: must be in 1..=100000000",
+                self.samples
+            ));
+        }
+        Ok(Resolved {
+            model,
+            params,
+            theta_deg,
+            phi_deg: if phi_deg > 180.0 {
+                phi_deg - 360.0
+            } else {
+                phi_deg
+            },
+            samples: self.samples,
+        })
+    }
+}
+
+/// Cell layout of the histograms.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GridKind {
+    /// R × R squares over [−1,1]² (the seed's grid).
+    Square,
+    /// R rings × (2R+1) sectors of equal area.
+    Polar,
+}
+
+/// The results of the current (or last) job, as they arrive.
+#[derive(Default)]
+struct Results {
+    fr: Option<Arc<FrMap>>,
+    tree: Option<(Arc<Quadtree>, TreeStats, f64, f64)>,
+    /// Expected mass per cell, with the grid it was integrated on.
+    expected: Option<(CellGrid, Arc<Vec<f64>>)>,
+    samples: Option<Arc<SampleState>>,
+    samples_grid: Option<CellGrid>,
+    error: Option<String>,
+}
+
+/// The live χ² of the current samples against f·cos.
+#[derive(Clone, Debug)]
+pub struct LiveTest {
+    /// Samples that landed in cells.
+    pub samples: u64,
+    /// Expected count per cell.
+    pub expected: Vec<f64>,
+    /// Observed count per cell.
+    pub observed: Vec<u64>,
+    /// Pearson's χ² (`None` with fewer than two pooled bins).
+    pub chi2: Option<ChiSquare>,
+}
+
+impl LiveTest {
+    /// (n − e)/√e per cell (0 where e = 0).
+    #[must_use]
+    pub fn residuals(&self) -> Vec<f64> {
+        self.observed
+            .iter()
+            .zip(&self.expected)
+            .map(|(&o, &e)| {
+                if e > 0.0 {
+                    (o as f64 - e) / e.sqrt()
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    }
+
+    /// Whether the χ² test accepts at [`ALPHA`].
+    #[must_use]
+    pub fn passed(&self) -> bool {
+        self.chi2.as_ref().is_some_and(|c| c.p_value >= ALPHA)
+    }
+}
+
+/// The whole state of the viewer.
+pub struct ViewerApp {
+    model: &'static ModelInfo,
+    params: ParamSet,
+    brdf: Result<Arc<dyn Brdf>, String>,
+    /// θi in degrees.
+    pub theta_deg: f32,
+    /// φi in degrees.
+    pub phi_deg: f32,
+    map: DiskMap,
+    split_threshold: f64,
+    max_depth: u8,
+    use_target: bool,
+    target_trials: f64,
+    sampler: SamplerKind,
+    samples: u64,
+    grid_kind: GridKind,
+    cells: usize,
+    seed: u64,
+    log_scale: bool,
+    background: Background,
+    outlines: bool,
+    points: bool,
+    camera: OrbitCamera,
+
+    worker: Worker,
+    generation: u64,
+    finished: u64,
+    dirty: bool,
+    results: Results,
+    fr_texture: Option<TextureHandle>,
+    leaf_texture: Option<TextureHandle>,
+    textures_stale: bool,
+    lobe: Option<Arc<LobeMesh>>,
+    lobe_versions: u64,
+    has_wgpu: bool,
+
+    /// Where each view was drawn in the last frame (points), for exports.
+    view_rects: BTreeMap<&'static str, Rect>,
+    export_dir: String,
+    export_status: Option<String>,
+    screenshots: (
+        Sender<Arc<egui::ColorImage>>,
+        Receiver<Arc<egui::ColorImage>>,
+    ),
+    export_pending: Option<PathBuf>,
+}
+
+impl ViewerApp {
+    /// The viewer for a checked launch. With a wgpu render state in `cc` the lobe view's GPU
+    /// resources are created; without one (pixel-free tests) the lobe view says so.
+    pub fn new(cc: &eframe::CreationContext<'_>, launch: Resolved) -> Self {
+        let has_wgpu = if let Some(rs) = cc.wgpu_render_state.as_ref() {
+            let resources = LobeResources::new(&rs.device, rs.target_format);
+            rs.renderer.write().callback_resources.insert(resources);
+            true
+        } else {
+            false
+        };
+        let ctx = cc.egui_ctx.clone();
+        let Resolved {
+            model,
+            params,
+            theta_deg,
+            phi_deg,
+            samples,
+        } = launch;
+        let mut app = Self {
+            model,
+            params,
+            brdf: Err(String::new()),
+            theta_deg,
+            phi_deg,
+            map: DiskMap::Orthographic,
+            split_threshold: 0.5,
+            max_depth: 20,
+            use_target: false,
+            target_trials: 1.25,
+            sampler: SamplerKind::Rejection,
+            samples,
+            grid_kind: GridKind::Square,
+            cells: 16,
+            seed: 1,
+            log_scale: false,
+            background: Background::Fr,
+            outlines: true,
+            points: true,
+            camera: OrbitCamera::default(),
+            worker: Worker::spawn(move || ctx.request_repaint()),
+            generation: 0,
+            finished: 0,
+            dirty: true,
+            results: Results::default(),
+            fr_texture: None,
+            leaf_texture: None,
+            textures_stale: true,
+            lobe: None,
+            lobe_versions: 0,
+            has_wgpu,
+            view_rects: BTreeMap::new(),
+            export_dir: "viewer-export".into(),
+            export_status: None,
+            screenshots: channel(),
+            export_pending: None,
+        };
+        app.rebuild_brdf();
+        app
+    }
+
+    /// The current model's registry name.
+    #[must_use]
+    pub fn model_name(&self) -> &'static str {
+        self.model.name
+    }
+
+    /// Switches to model `name` with its default parameters.
+    pub fn set_model(&mut self, name: &str) -> Result<(), String> {
+        self.model = registry::find(name).map_err(|e| e.to_string())?;
+        self.params = self.model.defaults();
+        self.rebuild_brdf();
+        Ok(())
+    }
+
+    /// The incident direction (local frame).
+    #[must_use]
+    pub fn wi(&self) -> Vec3 {
+        spherical_direction(self.theta_deg.to_radians(), self.phi_deg.to_radians())
+    }
+
+    /// Sets the incident direction from angles in degrees (θ clamped to [0, 89°]).
+    pub fn set_angles(&mut self, theta_deg: f32, phi_deg: f32) {
+        self.theta_deg = theta_deg.clamp(0.0, MAX_THETA_DEG);
+        self.phi_deg = phi_deg;
+        self.dirty = true;
+    }
+
+    /// True when the newest job has finished (or failed) and no input changed since.
+    #[must_use]
+    pub fn is_idle(&self) -> bool {
+        !self.dirty && self.finished == self.generation
+    }
+
+    /// The current tree's statistics, when one is built.
+    #[must_use]
+    pub fn tree_stats(&self) -> Option<&TreeStats> {
+        self.results.tree.as_ref().map(|t| &t.1)
+    }
+
+    /// The current sample tallies.
+    #[must_use]
+    pub fn sample_state(&self) -> Option<&SampleState> {
+        self.results.samples.as_deref()
+    }
+
+    /// The last error (a delta model, a failed build), if any.
+    #[must_use]
+    pub fn error(&self) -> Option<&str> {
+        self.results.error.as_deref()
+    }
+
+    /// The χ² of the current samples against the current expected masses, when both belong
+    /// to the same job.
+    #[must_use]
+    pub fn live_test(&self) -> Option<LiveTest> {
+        let (grid, mass) = self.results.expected.as_ref()?;
+        let samples = self.results.samples.as_ref()?;
+        if self.results.samples_grid != Some(*grid) || samples.counts.len() != mass.len() {
+            return None;
+        }
+        let landed: u64 = samples.counts.iter().sum();
+        let total: f64 = mass.iter().sum();
+        if landed == 0 || total <= 0.0 {
+            return None;
+        }
+        let expected: Vec<f64> = mass.iter().map(|m| landed as f64 * m / total).collect();
+        Some(LiveTest {
+            samples: landed,
+            chi2: chi_square(&samples.counts, &expected),
+            expected,
+            observed: samples.counts.clone(),
+        })
+    }
+
+    fn grid(&self) -> CellGrid {
+        match self.grid_kind {
+            GridKind::Square => CellGrid::Square { res: self.cells },
+            GridKind::Polar => CellGrid::Polar {
+                rings: self.cells,
+                sectors: 2 * self.cells + 1,
+            },
+        }
+    }
+
+    fn config(&self) -> BuildConfig {
+        BuildConfig {
+            map: self.map,
+            split_threshold: self.split_threshold,
+            max_depth: self.max_depth,
+            target_trials: self.use_target.then_some(self.target_trials),
+            ..BuildConfig::default()
+        }
+    }
+
+    fn rebuild_brdf(&mut self) {
+        self.brdf = self
+            .model
+            .build(&self.params)
+            .map(Arc::from)
+            .map_err(|e| e.to_string());
+        self.dirty = true;
+    }
+
+    /// Sends a job for the current inputs (if any changed) and takes in the worker's updates.
+    fn pump(&mut self) {
+        if self.dirty {
+            self.dirty = false;
+            self.generation += 1;
+            match &self.brdf {
+                Ok(brdf) => self.worker.submit(Request {
+                    generation: self.generation,
+                    brdf: Arc::clone(brdf),
+                    wi: self.wi(),
+                    config: self.config(),
+                    sampler: self.sampler,
+                    samples: self.samples,
+                    grid: self.grid(),
+                    seed: self.seed,
+                    map_res: 256,
+                    lobe_res: 48,
+                }),
+                Err(e) => {
+                    self.results.error = Some(e.clone());
+                    self.finished = self.generation;
+                }
+            }
+        }
+        for update in self.worker.poll() {
+            if update.generation() != self.generation {
+                continue;
+            }
+            match update {
+                Update::Map(_, map) => {
+                    self.results.fr = Some(map);
+                    self.results.error = None;
+                    self.textures_stale = true;
+                }
+                Update::Lobe(_, grid) => {
+                    self.lobe_versions += 1;
+                    self.lobe = Some(Arc::new(LobeMesh::from_grid(&grid, self.lobe_versions)));
+                }
+                Update::Tree {
+                    tree,
+                    stats,
+                    seconds,
+                    albedo,
+                    ..
+                } => {
+                    self.results.tree = Some((tree, stats, seconds, albedo));
+                    self.textures_stale = true;
+                }
+                Update::Expected(_, mass) => {
+                    self.results.expected = Some((self.grid(), mass));
+                    self.results.samples = None;
+                }
+                Update::Samples(_, state) => {
+                    self.results.samples = Some(state);
+                    self.results.samples_grid = Some(self.grid());
+                }
+                Update::Done(g) => self.finished = g,
+                Update::Failed(g, message) => {
+                    self.results.error = Some(message);
+                    self.results.tree = None;
+                    self.results.expected = None;
+                    self.results.samples = None;
+                    self.textures_stale = true;
+                    self.finished = g;
+                }
+            }
+        }
+    }
+
+    fn refresh_textures(&mut self, ctx: &egui::Context) {
+        if !self.textures_stale {
+            return;
+        }
+        self.textures_stale = false;
+        if let Some(fr) = &self.results.fr {
+            let image = views::fr_image(fr, self.log_scale);
+            self.fr_texture = Some(ctx.load_texture("f_r", image, TextureOptions::NEAREST));
+            self.leaf_texture = match (&self.results.tree, self.background) {
+                (_, Background::Fr) | (None, _) => None,
+                (Some((tree, ..)), bg) => Some(ctx.load_texture(
+                    "leaves",
+                    views::leaf_image(tree, fr.res, bg, fr),
+                    TextureOptions::NEAREST,
+                )),
+            };
+        }
+    }
+
+    fn controls(&mut self, ui: &mut egui::Ui) {
+        ui.heading("Model");
+        let mut chosen = self.model.name;
+        egui::ComboBox::from_label("model")
+            .selected_text(chosen)
+            .show_ui(ui, |ui| {
+                for m in registry::models() {
+                    ui.selectable_value(&mut chosen, m.name, m.name);
+                }
+            });
+        if chosen != self.model.name {
+            // Picked from the registry's own list, so it is there.
+            let _ = self.set_model(chosen);
+        }
+        ui.label(self.model.summary);
+        let mut changed = false;
+        for spec in self.model.params {
+            let Ok(value) = self.params.get(spec.name) else {
+                continue;
+            };
+            let mut v = value.rgb().to_array();
+            let channels = match spec.kind {
+                ParamKind::Scalar => 1,
+                ParamKind::Rgb => 3,
+            };
+            ui.horizontal(|ui| {
+                ui.label(spec.name).on_hover_text(spec.doc);
+                for c in v.iter_mut().take(channels) {
+                    let speed = (spec.max - spec.min) / 300.0;
+                    changed |= ui
+                        .add(
+                            egui::DragValue::new(c)
+                                .range(spec.min..=spec.max)
+                                .speed(speed),
+                        )
+                        .on_hover_text(spec.doc)
+                        .changed();
+                }
+            });
+            let new = match spec.kind {
+                ParamKind::Scalar => ParamValue::Scalar(v[0]),
+                ParamKind::Rgb => ParamValue::Rgb(Vec3::from_array(v)),
+            };
+            // A value at an open end of its range (e.g. 0 for (0, 1]) is refused: keep the old.
+            let _ = self.params.set(spec.name, new);
+        }
+        if changed {
+            self.rebuild_brdf();
+        }
+        if let Err(e) = &self.brdf {
+            ui.colored_label(Color32::LIGHT_RED, e);
+        }
+
+        ui.separator();
+        ui.heading("Incident direction");
+        let mut moved = ui
+            .add(egui::Slider::new(&mut self.theta_deg, 0.0..=MAX_THETA_DEG).text("θi (deg)"))
+            .changed();
+        moved |= ui
+            .add(egui::Slider::new(&mut self.phi_deg, -180.0..=180.0).text("φi (deg)"))
+            .changed();
+        ui.small("or drag on the disk view");
+        self.dirty |= moved;
+
+        ui.separator();
+        ui.heading("Tree");
+        let mut rebuild = false;
+        egui::ComboBox::from_label("map")
+            .selected_text(map_name(self.map))
+            .show_ui(ui, |ui| {
+                for m in [DiskMap::Orthographic, DiskMap::Concentric] {
+                    rebuild |= ui.selectable_value(&mut self.map, m, map_name(m)).changed();
+                }
+            });
+        rebuild |= ui
+            .add(egui::Slider::new(&mut self.split_threshold, 0.05..=0.95).text("split below P"))
+            .changed();
+        rebuild |= ui
+            .add(egui::Slider::new(&mut self.max_depth, 1..=20).text("max depth"))
+            .changed();
+        ui.horizontal(|ui| {
+            rebuild |= ui.checkbox(&mut self.use_target, "target E[T]").changed();
+            rebuild |= ui
+                .add_enabled(
+                    self.use_target,
+                    egui::DragValue::new(&mut self.target_trials)
+                        .range(1.01..=4.0)
+                        .speed(0.01),
+                )
+                .changed();
+        });
+
+        ui.separator();
+        ui.heading("Samples");
+        egui::ComboBox::from_label("sampler")
+            .selected_text(self.sampler.name())
+            .show_ui(ui, |ui| {
+                for k in SamplerKind::ALL {
+                    rebuild |= ui
+                        .selectable_value(&mut self.sampler, k, k.name())
+                        .changed();
+                }
+            });
+        rebuild |= ui
+            .add(
+                egui::Slider::new(&mut self.samples, 1_000..=10_000_000)
+                    .logarithmic(true)
+                    .text("samples"),
+            )
+            .changed();
+        ui.horizontal(|ui| {
+            rebuild |= ui
+                .radio_value(&mut self.grid_kind, GridKind::Square, "square cells")
+                .changed();
+            rebuild |= ui
+                .radio_value(&mut self.grid_kind, GridKind::Polar, "polar cells")
+                .changed();
+        });
+        rebuild |= ui
+            .add(egui::Slider::new(&mut self.cells, 4..=40).text("cells per side / rings"))
+            .changed();
+        rebuild |= ui
+            .add(egui::DragValue::new(&mut self.seed).prefix("seed "))
+            .changed();
+        self.dirty |= rebuild;
+
+        ui.separator();
+        ui.heading("View");
+        self.textures_stale |= ui.checkbox(&mut self.log_scale, "log scale").changed();
+        for (bg, label) in Background::ALL {
+            self.textures_stale |= ui.radio_value(&mut self.background, bg, label).changed();
+        }
+        ui.checkbox(&mut self.outlines, "leaf outlines");
+        ui.checkbox(&mut self.points, "sample points");
+
+        ui.separator();
+        ui.heading("Export");
+        ui.horizontal(|ui| {
+            ui.text_edit_singleline(&mut self.export_dir);
+            if ui.button("Export PNG + EXR").clicked() {
+                self.export_pending = Some(PathBuf::from(&self.export_dir));
+                let tx = self.screenshots.0.clone();
+                ui.ctx().request_screenshot(move |image| {
+                    let _ = tx.send(image);
+                });
+            }
+        });
+        if let Some(s) = &self.export_status {
+            ui.small(s);
+        }
+
+        ui.separator();
+        self.stats(ui);
+    }
+
+    fn stats(&self, ui: &mut egui::Ui) {
+        ui.heading("Stats");
+        if !self.is_idle() {
+            ui.horizontal(|ui| {
+                ui.spinner();
+                let progress = self
+                    .results
+                    .samples
+                    .as_ref()
+                    .map_or(0.0, |s| s.drawn as f32 / s.target.max(1) as f32);
+                ui.add(egui::ProgressBar::new(progress).show_percentage());
+            });
+        }
+        if let Some(e) = &self.results.error {
+            ui.colored_label(Color32::LIGHT_RED, e);
+        }
+        egui::Grid::new("stats").num_columns(2).show(ui, |ui| {
+            if let Some((_, s, seconds, albedo)) = &self.results.tree {
+                row(ui, "nodes", s.nodes.to_string());
+                row(
+                    ui,
+                    "leaves",
+                    format!("{} ({} live)", s.leaves, s.live_leaves),
+                );
+                row(ui, "depth", s.max_depth.to_string());
+                row(ui, "E[T] (tree)", format!("{:.3}", s.expected_trials));
+                row(
+                    ui,
+                    "bytes",
+                    format!("{} ({} per node)", s.bytes, s.bytes / s.nodes.max(1)),
+                );
+                row(ui, "build", format!("{:.1} ms", seconds * 1e3));
+                row(ui, "albedo", format!("{albedo:.4}"));
+            }
+            if let Some(s) = &self.results.samples {
+                row(ui, "drawn", format!("{} / {}", s.drawn, s.target));
+                let ok = s.drawn - s.lost;
+                row(
+                    ui,
+                    "trials / sample",
+                    format!("{:.3}", s.trials as f64 / ok.max(1) as f64),
+                );
+                row(
+                    ui,
+                    "sampling",
+                    format!("{:.0} ns / sample", s.seconds * 1e9 / s.drawn.max(1) as f64),
+                );
+                row(ui, "lost", s.lost.to_string());
+                row(ui, "bound violations", s.bound_violations.to_string());
+            }
+        });
+    }
+
+    fn disk_view(&mut self, ui: &mut egui::Ui, side: f32) {
+        let (response, painter) = ui.allocate_painter(vec2(side, side), Sense::click_and_drag());
+        let rect = response.rect;
+        self.view_rects.insert("disk", rect);
+        painter.rect_filled(rect, 0.0, views::OUTSIDE);
+        let uv = Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
+        let texture = match self.background {
+            Background::Fr => self.fr_texture.as_ref(),
+            _ => self.leaf_texture.as_ref().or(self.fr_texture.as_ref()),
+        };
+        if let Some(tex) = texture {
+            painter.image(tex.id(), rect, uv, Color32::WHITE);
+        }
+        if let Some((tree, ..)) = &self.results.tree
+            && self.outlines
+            && tree.map() == self.map
+        {
+            let stroke = Stroke::new(0.6, Color32::from_rgba_unmultiplied(255, 255, 255, 110));
+            painter.extend(views::leaf_outlines(tree, rect, stroke));
+        }
+        if self.points
+            && let Some(s) = &self.results.samples
+        {
+            let color = Color32::from_rgba_unmultiplied(255, 150, 60, 200);
+            for p in &s.points {
+                painter.circle_filled(views::to_screen(rect, *p), 1.0, color);
+            }
+        }
+        // Markers: the normal (+), wi (circle) and its mirror (ring).
+        let wi = self.wi();
+        let normal = views::to_screen(rect, self.map.direction_to_square(Vec3::Z));
+        let cross = Stroke::new(1.5, Color32::WHITE);
+        painter.line_segment([normal - vec2(6.0, 0.0), normal + vec2(6.0, 0.0)], cross);
+        painter.line_segment([normal - vec2(0.0, 6.0), normal + vec2(0.0, 6.0)], cross);
+        let wi_pos = views::to_screen(rect, self.map.direction_to_square(wi));
+        painter.circle(
+            wi_pos,
+            5.0,
+            Color32::from_rgb(80, 200, 255),
+            Stroke::new(1.5, Color32::BLACK),
+        );
+        let mirror = Vec3::new(-wi.x, -wi.y, wi.z);
+        let mirror_pos = views::to_screen(rect, self.map.direction_to_square(mirror));
+        painter.circle_stroke(
+            mirror_pos,
+            7.0,
+            Stroke::new(2.0, Color32::from_rgb(255, 80, 200)),
+        );
+        painter.text(
+            rect.left_top() + vec2(4.0, 4.0),
+            egui::Align2::LEFT_TOP,
+            format!(
+                "{} square [−1,1]²: + normal, blue dot wi, pink ring mirror (drag to move wi)",
+                map_name(self.map)
+            ),
+            egui::FontId::proportional(11.0),
+            Color32::WHITE,
+        );
+        if (response.dragged() || response.clicked())
+            && let Some(pos) = response.interact_pointer_pos()
+        {
+            self.drag_wi(views::from_screen(rect, pos));
+        }
+    }
+
+    /// Sets wi to the direction whose square point is `p` (clamped into the domain).
+    fn drag_wi(&mut self, p: Vec2) {
+        let p = p.clamp(Vec2::splat(-1.0), Vec2::splat(1.0));
+        let dir = match self.map.square_to_direction(p) {
+            Some(d) => d,
+            // Outside the orthographic disk: the rim point in that azimuth.
+            None => Vec3::new(p.x, p.y, 0.0).normalize_or(Vec3::X),
+        };
+        let (theta, phi) = spherical_angles(dir);
+        self.set_angles(theta.to_degrees(), phi.to_degrees().rem_euclid(360.0));
+        if self.phi_deg > 180.0 {
+            self.phi_deg -= 360.0;
+        }
+    }
+
+    fn lobe_view(&mut self, ui: &mut egui::Ui, size: egui::Vec2) {
+        let (response, painter) = ui.allocate_painter(size, Sense::drag());
+        let rect = response.rect;
+        self.view_rects.insert("lobe", rect);
+        if response.dragged() {
+            let d = response.drag_delta();
+            self.camera.drag(d.x, d.y);
+        }
+        painter.rect_filled(rect, 0.0, Color32::from_rgb(23, 23, 28));
+        let view_proj = self.camera.view_proj(rect.width() / rect.height().max(1.0));
+        if let (true, Some(mesh)) = (self.has_wgpu, &self.lobe) {
+            let ppp = ui.ctx().pixels_per_point();
+            painter.add(egui_wgpu::Callback::new_paint_callback(
+                rect,
+                LobePaint {
+                    mesh: Arc::clone(mesh),
+                    view_proj,
+                    size_px: [
+                        (rect.width() * ppp).round() as u32,
+                        (rect.height() * ppp).round() as u32,
+                    ],
+                },
+            ));
+        } else if !self.has_wgpu {
+            painter.text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                "the 3D lobe needs the wgpu renderer",
+                egui::FontId::proportional(12.0),
+                Color32::GRAY,
+            );
+        }
+        // The incident and mirror vectors, projected with the same camera.
+        let wi = self.wi();
+        let o = project(view_proj, rect, Vec3::ZERO);
+        let arrow = |v: Vec3, color: Color32| {
+            painter.line_segment(
+                [o, project(view_proj, rect, v * 1.2)],
+                Stroke::new(2.0, color),
+            );
+        };
+        arrow(wi, Color32::from_rgb(80, 200, 255));
+        arrow(
+            Vec3::new(-wi.x, -wi.y, wi.z),
+            Color32::from_rgb(255, 80, 200),
+        );
+        arrow(Vec3::Z, Color32::WHITE);
+        painter.text(
+            rect.left_top() + vec2(4.0, 4.0),
+            egui::Align2::LEFT_TOP,
+            "f_r·cos θo lobe (drag to orbit) — blue wi, pink mirror, white normal",
+            egui::FontId::proportional(11.0),
+            Color32::WHITE,
+        );
+    }
+
+    fn histograms(&mut self, ui: &mut egui::Ui, side: f32) {
+        let test = self.live_test();
+        let grid = self.results.expected.as_ref().map(|(g, _)| *g);
+        ui.horizontal(|ui| {
+            for (name, title) in [
+                ("observed", "observed n_i"),
+                ("expected", "expected e_i (integrator)"),
+                ("difference", "(n - e)/sqrt(e), ±4"),
+            ] {
+                ui.vertical(|ui| {
+                    ui.label(title);
+                    let (response, painter) = ui.allocate_painter(vec2(side, side), Sense::hover());
+                    let rect = response.rect;
+                    self.view_rects.insert(name, rect);
+                    painter.rect_filled(rect, 0.0, views::OUTSIDE);
+                    if let (Some(t), Some(grid)) = (&test, grid) {
+                        let max = t
+                            .expected
+                            .iter()
+                            .copied()
+                            .chain(t.observed.iter().map(|&o| o as f64))
+                            .fold(0.0, f64::max);
+                        let residuals = t.residuals();
+                        let color = |i: usize| match name {
+                            _ if t.expected[i] <= 0.0 && t.observed[i] == 0 => views::OUTSIDE,
+                            "observed" => views::count_color(t.observed[i] as f64, max),
+                            "expected" => views::count_color(t.expected[i], max),
+                            _ => views::residual_color(residuals[i]),
+                        };
+                        views::paint_cells(&painter, rect, grid, &color);
+                    }
+                });
+            }
+        });
+        match &test {
+            Some(t) => {
+                let (text, color) = match &t.chi2 {
+                    Some(c) => (
+                        format!(
+                            "χ² = {:.1}, dof = {}, p = {:.3}: {} at α = {ALPHA} ({} samples in cells)",
+                            c.statistic,
+                            c.dof,
+                            c.p_value,
+                            if t.passed() {
+                                "consistent with f·cos"
+                            } else {
+                                "REJECTED"
+                            },
+                            t.samples
+                        ),
+                        if t.passed() {
+                            Color32::LIGHT_GREEN
+                        } else {
+                            Color32::LIGHT_RED
+                        },
+                    ),
+                    None => ("too few samples for a χ² test".into(), Color32::GRAY),
+                };
+                ui.colored_label(color, text);
+            }
+            None => {
+                ui.label("waiting for samples…");
+            }
+        }
+    }
+
+    fn finish_export(&mut self, ctx: &egui::Context) {
+        let Ok(image) = self.screenshots.1.try_recv() else {
+            return;
+        };
+        let Some(dir) = self.export_pending.take() else {
+            return;
+        };
+        self.export_status = Some(match self.export_to(&dir, &image, ctx.pixels_per_point()) {
+            Ok(files) => format!("wrote {} files to {}", files.len(), dir.display()),
+            Err(e) => format!("export failed: {e}"),
+        });
+    }
+
+    /// Writes a PNG of each view, cropped from `screenshot` (a full-window image at
+    /// `pixels_per_point`), and the raw maps as EXR into `dir`. Returns the files written.
+    pub fn export_to(
+        &self,
+        dir: &std::path::Path,
+        screenshot: &egui::ColorImage,
+        pixels_per_point: f32,
+    ) -> Result<Vec<PathBuf>, String> {
+        let mut files = export::write_views(dir, screenshot, pixels_per_point, &self.view_rects)?;
+        if let Some(fr) = &self.results.fr {
+            let tree = self.results.tree.as_ref().map(|t| &*t.0);
+            files.push(export::write_maps(dir, fr, tree)?);
+        }
+        if let (Some(t), Some((grid, mass))) = (self.live_test(), &self.results.expected) {
+            files.push(export::write_cells(dir, *grid, mass, &t)?);
+        }
+        Ok(files)
+    }
+}
+
+fn row(ui: &mut egui::Ui, name: &str, value: String) {
+    ui.label(name);
+    ui.monospace(value);
+    ui.end_row();
+}
+
+fn map_name(map: DiskMap) -> &'static str {
+    match map {
+        DiskMap::Orthographic => "orthographic",
+        DiskMap::Concentric => "concentric",
+    }
+}
+
+impl eframe::App for ViewerApp {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        self.pump();
+        let ctx = ui.ctx().clone();
+        self.refresh_textures(&ctx);
+        self.finish_export(&ctx);
+        egui::Panel::left("controls")
+            .default_size(310.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
+            });
+        egui::CentralPanel::default().show(ui, |ui| {
+            let avail = ui.available_size();
+            let top = (avail.y * 0.58).min(avail.x * 0.5).max(120.0);
+            ui.horizontal(|ui| {
+                self.disk_view(ui, top);
+                let lobe_w = (ui.available_width()).max(120.0);
+                self.lobe_view(ui, vec2(lobe_w, top));
+            });
+            let rest = ui.available_height() - 44.0;
+            let side = (rest).min((avail.x - 24.0) / 3.0).max(80.0);
+            self.histograms(ui, side);
+        });
+        if !self.is_idle() {
+            ctx.request_repaint_after(std::time::Duration::from_millis(50));
+        }
+    }
+}

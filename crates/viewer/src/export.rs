@@ -1,0 +1,140 @@
+//! Exports: a PNG of each view (cropped from a full-window image) and the raw maps as EXR.
+
+use crate::app::LiveTest;
+use crate::worker::FrMap;
+use eframe::egui::{ColorImage, Rect};
+use quadtree_sampler::Quadtree;
+use quadtree_sampler::validate::CellGrid;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// A full-window image as an `image` RGBA buffer.
+#[must_use]
+pub fn to_rgba(image: &ColorImage) -> image::RgbaImage {
+    let [w, h] = image.size;
+    let bytes = image.pixels.iter().flat_map(|c| c.to_array()).collect();
+    image::RgbaImage::from_raw(w as u32, h as u32, bytes).unwrap_or_default()
+}
+
+/// Writes `<name>.png` for every view rectangle (points, scaled by `pixels_per_point`),
+/// cropped from `screenshot`.
+pub fn write_views(
+    dir: &Path,
+    screenshot: &ColorImage,
+    pixels_per_point: f32,
+    rects: &BTreeMap<&'static str, Rect>,
+) -> Result<Vec<PathBuf>, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let full = to_rgba(screenshot);
+    let mut files = Vec::new();
+    for (name, rect) in rects {
+        let x0 = (rect.left() * pixels_per_point).round().max(0.0) as u32;
+        let y0 = (rect.top() * pixels_per_point).round().max(0.0) as u32;
+        let x1 = ((rect.right() * pixels_per_point).round() as u32).min(full.width());
+        let y1 = ((rect.bottom() * pixels_per_point).round() as u32).min(full.height());
+        if x1 <= x0 || y1 <= y0 {
+            continue;
+        }
+        let crop = image::imageops::crop_imm(&full, x0, y0, x1 - x0, y1 - y0).to_image();
+        let path = dir.join(format!("{name}.png"));
+        crop.save(&path)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        files.push(path);
+    }
+    Ok(files)
+}
+
+fn write_exr(
+    path: &Path,
+    width: usize,
+    height: usize,
+    channels: Vec<(&str, Vec<f32>)>,
+) -> Result<PathBuf, String> {
+    use exr::prelude::*;
+    let list = channels
+        .into_iter()
+        .map(|(name, values)| AnyChannel::new(name, FlatSamples::F32(values)))
+        .collect::<Vec<_>>();
+    let layer = Layer::new(
+        (width, height),
+        LayerAttributes::named("viewer"),
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(list.into()),
+    );
+    Image::from_layer(layer)
+        .write()
+        .to_file(path)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(path.to_path_buf())
+}
+
+/// `maps.exr`: over the tree's square at the f_r map's resolution (row 0 at v = +1), the
+/// channels `fr` (Y(f_r), NaN outside the domain) and, with a tree, `leaf_probability`
+/// (v1/Σv1 of the leaf holding the pixel), `leaf_acceptance` (its P) and `leaf_depth`.
+pub fn write_maps(dir: &Path, fr: &FrMap, tree: Option<&Quadtree>) -> Result<PathBuf, String> {
+    let res = fr.res;
+    let mut channels = vec![("fr", fr.values.clone())];
+    if let Some(tree) = tree {
+        let nodes = tree.nodes();
+        let volume = tree.volume().max(1e-300);
+        let leaves: Vec<usize> = (0..res * res)
+            .map(|k| {
+                let (i, j) = (k % res, k / res);
+                tree.leaf_at(glam::DVec2::new(
+                    (i as f64 + 0.5) / res as f64 * 2.0 - 1.0,
+                    1.0 - (j as f64 + 0.5) / res as f64 * 2.0,
+                ))
+            })
+            .collect();
+        channels.push((
+            "leaf_probability",
+            leaves
+                .iter()
+                .map(|&l| (nodes[l].v1 / volume) as f32)
+                .collect(),
+        ));
+        channels.push((
+            "leaf_acceptance",
+            leaves
+                .iter()
+                .map(|&l| nodes[l].acceptance() as f32)
+                .collect(),
+        ));
+        channels.push((
+            "leaf_depth",
+            leaves.iter().map(|&l| f32::from(nodes[l].depth)).collect(),
+        ));
+    }
+    write_exr(&dir.join("maps.exr"), res, res, channels)
+}
+
+/// `cells.exr`: the histogram cells (square grids with y = +1 in the top row; polar grids one
+/// row per ring, centre first) with channels `observed`, `expected`, `mass` and `residual`.
+pub fn write_cells(
+    dir: &Path,
+    grid: CellGrid,
+    mass: &[f64],
+    test: &LiveTest,
+) -> Result<PathBuf, String> {
+    let (rows, cols) = grid.dims();
+    let order: Vec<usize> = match grid {
+        CellGrid::Square { .. } => (0..rows)
+            .rev()
+            .flat_map(|r| (0..cols).map(move |c| r * cols + c))
+            .collect(),
+        CellGrid::Polar { .. } => (0..rows * cols).collect(),
+    };
+    let residual = test.residuals();
+    let take = |v: &dyn Fn(usize) -> f64| order.iter().map(|&i| v(i) as f32).collect::<Vec<_>>();
+    write_exr(
+        &dir.join("cells.exr"),
+        cols,
+        rows,
+        vec![
+            ("observed", take(&|i| test.observed[i] as f64)),
+            ("expected", take(&|i| test.expected[i])),
+            ("mass", take(&|i| mass[i])),
+            ("residual", take(&|i| residual[i])),
+        ],
+    )
+}

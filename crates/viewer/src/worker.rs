@@ -1,0 +1,451 @@
+//! The background worker: everything that evaluates the BRDF in bulk runs here, off the UI
+//! thread — the f_r map of the disk view, the lobe mesh, the quadtree build, the expected
+//! cell masses (the independent integrator of `quadtree_sampler::validate`) and the samples.
+//!
+//! The UI sends a [`Request`] whenever an input changes; each carries a generation number.
+//! The worker always works on the newest request: it drops queued stale ones, and between
+//! steps (and between sample chunks) it checks the shared latest generation and abandons a
+//! stale job. Results come back as [`Update`]s tagged with their generation, so the UI can
+//! ignore anything stale that was already in flight.
+
+use brdf_core::geometry::luminance;
+use brdf_core::{Brdf, DiskMap};
+use glam::{Vec2, Vec3};
+use quadtree_sampler::validate::{CellGrid, Validation};
+use quadtree_sampler::{
+    Baseline, BaselineSampler, BuildConfig, DEFAULT_MIX, DirectionSampler, Quadtree,
+    QuadtreeSampler, TreeStats, WarpSampler,
+};
+use rand_core::SeedableRng;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, Sender, TryRecvError, channel};
+use std::time::Instant;
+
+/// Samples drawn between two progress updates (and cancellation checks).
+pub const CHUNK: u64 = 1 << 14;
+
+/// At most this many sample points are kept for the point cloud (the histogram counts all).
+pub const MAX_POINTS: usize = 4_000;
+
+/// Which sampler the laboratory draws from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SamplerKind {
+    /// The seed's method: descend the tree by v1, rejection-sample in the leaf.
+    Rejection,
+    /// The tree with a bilinear warp inside each leaf (no rejection; pdf not ∝ f·cos).
+    Warp,
+    /// Cosine-weighted hemisphere sampling (a baseline).
+    Cosine,
+    /// Uniform hemisphere sampling (a baseline).
+    Uniform,
+    /// The model's own analytic sampler (a baseline).
+    Analytic,
+}
+
+impl SamplerKind {
+    /// Every kind, in the order the UI lists them.
+    pub const ALL: [Self; 5] = [
+        Self::Rejection,
+        Self::Warp,
+        Self::Cosine,
+        Self::Uniform,
+        Self::Analytic,
+    ];
+
+    /// The name the `brdf` CLI uses for this mode.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Rejection => "rejection",
+            Self::Warp => "warp",
+            Self::Cosine => "cosine",
+            Self::Uniform => "uniform",
+            Self::Analytic => "analytic",
+        }
+    }
+
+    /// Whether this sampler uses the quadtree.
+    #[must_use]
+    pub fn uses_tree(self) -> bool {
+        matches!(self, Self::Rejection | Self::Warp)
+    }
+}
+
+/// One unit of work: the state of every input that affects a result.
+#[derive(Clone, Debug)]
+pub struct Request {
+    /// Generation number (strictly increasing per worker).
+    pub generation: u64,
+    /// The model, built from the current parameters.
+    pub brdf: Arc<dyn Brdf>,
+    /// Incident direction, local frame, unit, above the horizon.
+    pub wi: Vec3,
+    /// How to build the tree.
+    pub config: BuildConfig,
+    /// The sampler to draw from.
+    pub sampler: SamplerKind,
+    /// Samples to draw in all.
+    pub samples: u64,
+    /// The histogram cells.
+    pub grid: CellGrid,
+    /// Seed of the sample stream.
+    pub seed: u64,
+    /// Side of the f_r map, in pixels.
+    pub map_res: usize,
+    /// Lobe mesh resolution: rings in θ (sectors in φ are twice this).
+    pub lobe_res: usize,
+}
+
+/// f_r(wi, ·) luminance sampled over the tree's square [−1,1]² (row 0 at v = +1).
+#[derive(Clone, Debug)]
+pub struct FrMap {
+    /// Side in pixels.
+    pub res: usize,
+    /// The square ↔ hemisphere map the pixels go through.
+    pub map: DiskMap,
+    /// Y(f_r) in 1/sr per pixel; NaN outside the map's domain (the orthographic corners).
+    pub values: Vec<f32>,
+}
+
+/// The lobe Y(f_r)·cos θo over a (θ, φ) grid of the hemisphere, for the 3D view.
+#[derive(Clone, Debug)]
+pub struct LobeGrid {
+    /// Rings in θ ∈ [0, π/2] (rows = rings + 1, pole first).
+    pub rings: usize,
+    /// Sectors in φ ∈ [0, 2π) (columns).
+    pub sectors: usize,
+    /// Y(f_r)·cos θ, row-major, (rings + 1) × sectors.
+    pub radius: Vec<f32>,
+}
+
+impl LobeGrid {
+    /// The direction of grid vertex (ring `i`, sector `j`).
+    #[must_use]
+    pub fn direction(&self, i: usize, j: usize) -> Vec3 {
+        let theta = core::f32::consts::FRAC_PI_2 * i as f32 / self.rings as f32;
+        let phi = core::f32::consts::TAU * j as f32 / self.sectors as f32;
+        brdf_core::geometry::spherical_direction(theta, phi)
+    }
+}
+
+/// The sample tallies so far.
+#[derive(Clone, Debug, Default)]
+pub struct SampleState {
+    /// Samples drawn so far (including lost ones).
+    pub drawn: u64,
+    /// Samples asked for.
+    pub target: u64,
+    /// Per-cell counts (row-major, as [`CellGrid::dims`]).
+    pub counts: Vec<u64>,
+    /// Sample points on the tree's square (at most [`MAX_POINTS`]).
+    pub points: Vec<Vec2>,
+    /// Samples the sampler gave no direction for.
+    pub lost: u64,
+    /// Rejection trials in all.
+    pub trials: u64,
+    /// Seconds spent sampling.
+    pub seconds: f64,
+    /// Times f_r exceeded a leaf's bound during sampling (the tree's counter).
+    pub bound_violations: u64,
+}
+
+/// What the worker reports. Every variant carries the request's generation.
+#[derive(Clone, Debug)]
+pub enum Update {
+    /// The f_r map is ready.
+    Map(u64, Arc<FrMap>),
+    /// The lobe grid is ready.
+    Lobe(u64, Arc<LobeGrid>),
+    /// The tree is built.
+    Tree {
+        /// Generation.
+        generation: u64,
+        /// The tree.
+        tree: Arc<Quadtree>,
+        /// Its statistics.
+        stats: TreeStats,
+        /// Seconds the build took.
+        seconds: f64,
+        /// The directional albedo the tree's volume gives.
+        albedo: f64,
+    },
+    /// The expected cell masses ∫ Y(f_r) dA are integrated.
+    Expected(u64, Arc<Vec<f64>>),
+    /// More samples were drawn (cumulative).
+    Samples(u64, Arc<SampleState>),
+    /// The job is complete.
+    Done(u64),
+    /// The job failed; the message says why.
+    Failed(u64, String),
+}
+
+impl Update {
+    /// The generation this update belongs to.
+    #[must_use]
+    pub fn generation(&self) -> u64 {
+        match self {
+            Self::Map(g, _)
+            | Self::Lobe(g, _)
+            | Self::Expected(g, _)
+            | Self::Samples(g, _)
+            | Self::Done(g)
+            | Self::Failed(g, _) => *g,
+            Self::Tree { generation, .. } => *generation,
+        }
+    }
+}
+
+/// A handle on the worker thread. Dropping it stops the thread.
+pub struct Worker {
+    requests: Option<Sender<Request>>,
+    updates: Receiver<Update>,
+    latest: Arc<AtomicU64>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Worker {
+    /// Starts the worker; `wake` is called after every update is sent (the UI passes
+    /// `egui::Context::request_repaint`).
+    #[must_use]
+    pub fn spawn(wake: impl Fn() + Send + 'static) -> Self {
+        let (req_tx, req_rx) = channel::<Request>();
+        let (up_tx, up_rx) = channel::<Update>();
+        let latest = Arc::new(AtomicU64::new(0));
+        let shared = Arc::clone(&latest);
+        let thread = std::thread::Builder::new()
+            .name("brdf-viewer-worker".into())
+            .spawn(move || run(&req_rx, &up_tx, &shared, &wake))
+            .expect("spawning the viewer's worker thread");
+        Self {
+            requests: Some(req_tx),
+            updates: up_rx,
+            latest,
+            thread: Some(thread),
+        }
+    }
+
+    /// Queues `request`; any older job is abandoned at its next check.
+    pub fn submit(&self, request: Request) {
+        self.latest.store(request.generation, Ordering::SeqCst);
+        if let Some(tx) = &self.requests {
+            // The thread only ends when this handle drops, so sending cannot fail here.
+            let _ = tx.send(request);
+        }
+    }
+
+    /// Every update that arrived since the last call.
+    pub fn poll(&self) -> Vec<Update> {
+        self.updates.try_iter().collect()
+    }
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        self.latest.store(u64::MAX, Ordering::SeqCst);
+        self.requests = None;
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn run(
+    requests: &Receiver<Request>,
+    updates: &Sender<Update>,
+    latest: &AtomicU64,
+    wake: &(impl Fn() + Send),
+) {
+    let Ok(mut next) = requests.recv() else {
+        return;
+    };
+    loop {
+        // Skip to the newest queued request.
+        loop {
+            match requests.try_recv() {
+                Ok(r) => next = r,
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => return,
+            }
+        }
+        let generation = next.generation;
+        let live = || latest.load(Ordering::SeqCst) == generation;
+        let send = |u: Update| {
+            let _ = updates.send(u);
+            wake();
+        };
+        process(&next, &live, &send);
+        match requests.recv() {
+            Ok(r) => next = r,
+            Err(_) => return,
+        }
+    }
+}
+
+/// Runs one request to completion (or until `live` turns false), sending updates.
+pub fn process(req: &Request, live: &dyn Fn() -> bool, send: &dyn Fn(Update)) {
+    let g = req.generation;
+    let brdf: &dyn Brdf = &*req.brdf;
+    send(Update::Map(
+        g,
+        Arc::new(fr_map(brdf, req.wi, req.config.map, req.map_res)),
+    ));
+    if !live() {
+        return;
+    }
+    send(Update::Lobe(
+        g,
+        Arc::new(lobe_grid(brdf, req.wi, req.lobe_res)),
+    ));
+    if !live() {
+        return;
+    }
+    if brdf.is_delta() {
+        send(Update::Failed(
+            g,
+            format!(
+                "`{}` is a Dirac delta: it has no continuous part to build a tree for or to sample \
+                 (its only direction is the mirror of wi, marked on the disk)",
+                brdf.name()
+            ),
+        ));
+        return;
+    }
+    let t0 = Instant::now();
+    // The tree is built (and shown) whichever sampler draws: it is what the lab is about.
+    let tree_sampler = match QuadtreeSampler::new(brdf, req.wi, req.config) {
+        Ok(s) => s,
+        Err(e) => {
+            send(Update::Failed(g, e.to_string()));
+            return;
+        }
+    };
+    send(Update::Tree {
+        generation: g,
+        tree: Arc::new(tree_sampler.tree().clone()),
+        stats: tree_sampler.stats(),
+        seconds: t0.elapsed().as_secs_f64(),
+        albedo: tree_sampler.albedo(),
+    });
+    if !live() {
+        return;
+    }
+    let validation = match Validation::new(brdf, req.wi, req.grid, 1e-7) {
+        Ok(v) => v,
+        Err(e) => {
+            send(Update::Failed(g, e.to_string()));
+            return;
+        }
+    };
+    send(Update::Expected(g, Arc::new(validation.mass().to_vec())));
+    if !live() {
+        return;
+    }
+    let other: Option<Box<dyn DirectionSampler + '_>> = match req.sampler {
+        SamplerKind::Rejection => None,
+        SamplerKind::Warp => match WarpSampler::new(brdf, req.wi, req.config, DEFAULT_MIX) {
+            Ok(s) => Some(Box::new(s)),
+            Err(e) => {
+                send(Update::Failed(g, e.to_string()));
+                return;
+            }
+        },
+        SamplerKind::Cosine | SamplerKind::Uniform | SamplerKind::Analytic => {
+            let kind = match req.sampler {
+                SamplerKind::Cosine => Baseline::Cosine,
+                SamplerKind::Uniform => Baseline::Uniform,
+                _ => Baseline::Analytic,
+            };
+            match BaselineSampler::new(brdf, req.wi, kind) {
+                Ok(s) => Some(Box::new(s)),
+                Err(e) => {
+                    send(Update::Failed(g, e.to_string()));
+                    return;
+                }
+            }
+        }
+    };
+    let sampler: &dyn DirectionSampler = match &other {
+        Some(b) => &**b,
+        None => &tree_sampler,
+    };
+    let map = req.config.map;
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(req.seed);
+    let mut state = SampleState {
+        target: req.samples,
+        counts: vec![0; req.grid.len()],
+        ..SampleState::default()
+    };
+    let t0 = Instant::now();
+    while state.drawn < req.samples {
+        let n = CHUNK.min(req.samples - state.drawn);
+        for _ in 0..n {
+            state.drawn += 1;
+            match sampler.sample(&mut rng) {
+                Some(s) if !s.delta => {
+                    state.trials += u64::from(s.trials);
+                    if let Some(c) = req.grid.cell_of(s.wo) {
+                        state.counts[c] += 1;
+                    }
+                    if state.points.len() < MAX_POINTS {
+                        state.points.push(map.direction_to_square(s.wo));
+                    }
+                }
+                _ => state.lost += 1,
+            }
+        }
+        state.seconds = t0.elapsed().as_secs_f64();
+        if other.is_none() {
+            state.bound_violations = tree_sampler.bound_violations();
+        }
+        send(Update::Samples(g, Arc::new(state.clone())));
+        if !live() {
+            return;
+        }
+    }
+    send(Update::Done(g));
+}
+
+/// Y(f_r(wi, ·)) at `res`² pixel centres of the square [−1,1]² through `map`.
+#[must_use]
+pub fn fr_map(brdf: &dyn Brdf, wi: Vec3, map: DiskMap, res: usize) -> FrMap {
+    let values = (0..res * res)
+        .map(|k| {
+            let (i, j) = (k % res, k / res);
+            let p = Vec2::new(
+                (i as f32 + 0.5) / res as f32 * 2.0 - 1.0,
+                1.0 - (j as f32 + 0.5) / res as f32 * 2.0,
+            );
+            match map.square_to_direction(p) {
+                Some(wo) if wo.z > 0.0 => luminance(brdf.eval(wi, wo)),
+                Some(_) => 0.0,
+                None => f32::NAN,
+            }
+        })
+        .collect();
+    FrMap { res, map, values }
+}
+
+/// Y(f_r)·cos θo over a (θ, φ) grid with `rings` rings and 2·`rings` sectors.
+#[must_use]
+pub fn lobe_grid(brdf: &dyn Brdf, wi: Vec3, rings: usize) -> LobeGrid {
+    let mut grid = LobeGrid {
+        rings,
+        sectors: 2 * rings,
+        radius: Vec::with_capacity((rings + 1) * 2 * rings),
+    };
+    for i in 0..=rings {
+        for j in 0..grid.sectors {
+            let wo = grid.direction(i, j);
+            // The rim ring (θ = 90°) has cos θ = 0: the lobe closes on the horizon.
+            let r = if wo.z > 1e-6 {
+                luminance(brdf.eval(wi, wo)) * wo.z
+            } else {
+                0.0
+            };
+            grid.radius
+                .push(if r.is_finite() { r.max(0.0) } else { 0.0 });
+        }
+    }
+    grid
+}
