@@ -308,6 +308,19 @@ impl ViewerApp {
         self.results.samples.as_deref()
     }
 
+    /// Where view `name` (`disk`, `lobe`, `observed`, `expected`, `difference`) was drawn in
+    /// the last frame, in points.
+    #[must_use]
+    pub fn view_rect(&self, name: &str) -> Option<Rect> {
+        self.view_rects.get(name).copied()
+    }
+
+    /// The square point (of the current map) where wi is marked on the disk view.
+    #[must_use]
+    pub fn wi_square_point(&self) -> Vec2 {
+        self.map.direction_to_square(self.wi())
+    }
+
     /// The last error (a delta model, a failed build), if any.
     #[must_use]
     pub fn error(&self) -> Option<&str> {
@@ -535,7 +548,8 @@ impl ViewerApp {
             .add(egui::Slider::new(&mut self.max_depth, 1..=20).text("max depth"))
             .changed();
         ui.horizontal(|ui| {
-            rebuild |= ui.checkbox(&mut self.use_target, "target E[T]").changed();
+            let check = ui.checkbox(&mut self.use_target, "target E[T]");
+            rebuild |= check.changed();
             rebuild |= ui
                 .add_enabled(
                     self.use_target,
@@ -543,6 +557,7 @@ impl ViewerApp {
                         .range(1.01..=4.0)
                         .speed(0.01),
                 )
+                .labelled_by(check.id)
                 .changed();
         });
 
@@ -592,7 +607,9 @@ impl ViewerApp {
         ui.separator();
         ui.heading("Export");
         ui.horizontal(|ui| {
-            ui.text_edit_singleline(&mut self.export_dir);
+            let label = ui.label("folder");
+            ui.text_edit_singleline(&mut self.export_dir)
+                .labelled_by(label.id);
             if ui.button("Export PNG + EXR").clicked() {
                 self.export_pending = Some(PathBuf::from(&self.export_dir));
                 let tx = self.screenshots.0.clone();

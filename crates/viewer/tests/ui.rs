@@ -1,0 +1,177 @@
+//! Pixel-free interaction tests (egui_kittest drives the real app; the worker thread runs
+//! for real) and a small snapshot of the rendered window (wgpu on a software adapter).
+
+use eframe::egui;
+use egui::accesskit::Role;
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use std::time::{Duration, Instant};
+use viewer::{Launch, ViewerApp};
+
+fn harness(launch: Launch) -> Harness<'static, ViewerApp> {
+    let resolved = launch.resolve().expect("a valid launch");
+    Harness::builder()
+        .with_size(egui::vec2(1400.0, 900.0))
+        .build_eframe(move |cc| ViewerApp::new(cc, resolved))
+}
+
+/// Steps frames until the app's newest job is done (the worker runs on its own thread).
+fn settle(h: &mut Harness<'_, ViewerApp>) {
+    let start = Instant::now();
+    h.run_steps(2);
+    while !h.state().is_idle() {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "the worker did not finish"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+        h.step();
+    }
+    h.run_steps(2);
+}
+
+fn small(model: &str) -> Launch {
+    Launch {
+        model: model.into(),
+        samples: 20_000,
+        ..Launch::default()
+    }
+}
+
+#[test]
+fn picking_a_model_in_the_combo_box_rebuilds_the_tree_and_the_histograms() {
+    let mut h = harness(small("ward"));
+    settle(&mut h);
+    let ward = h.state().tree_stats().expect("a tree for ward").clone();
+    assert!(h.state().live_test().is_some());
+    h.get_by_role_and_label(Role::ComboBox, "model").click();
+    h.run_steps(2);
+    h.get_by_label("phong").click();
+    h.run_steps(2);
+    assert_eq!(h.state().model_name(), "phong");
+    settle(&mut h);
+    let phong = h.state().tree_stats().expect("a tree for phong").clone();
+    assert_ne!(
+        ward.nodes, phong.nodes,
+        "the tree did not change with the model"
+    );
+    let test = h.state().live_test().expect("histograms for phong");
+    assert_eq!(test.samples, 20_000);
+    assert!(test.passed(), "{:?}", test.chi2);
+}
+
+#[test]
+fn moving_the_theta_slider_moves_wi_and_rebuilds() {
+    let mut h = harness(small("phong"));
+    settle(&mut h);
+    let before = h.state().tree_stats().unwrap().clone();
+    h.get_by_role_and_label(Role::Slider, "θi (deg)")
+        .set_value_accesskit(70.0);
+    h.run_steps(2);
+    assert!(
+        (h.state().theta_deg - 70.0).abs() < 1e-3,
+        "θ = {}",
+        h.state().theta_deg
+    );
+    settle(&mut h);
+    let after = h.state().tree_stats().unwrap().clone();
+    assert_ne!(before, after, "the tree did not follow wi");
+    // The drawn samples are for the new direction: the χ² still accepts.
+    assert!(h.state().live_test().unwrap().passed());
+}
+
+#[test]
+fn dragging_on_the_disk_sets_the_incident_direction() {
+    let mut h = harness(small("phong"));
+    settle(&mut h);
+    let rect = h
+        .state()
+        .view_rect("disk")
+        .expect("the disk view was drawn");
+    // The square point (−0.5, 0.5): θ = asin(|p|) = 45°, φ = 135°.
+    let target = egui::pos2(
+        rect.center().x - 0.25 * rect.width(),
+        rect.center().y - 0.25 * rect.height(),
+    );
+    h.drag_at(target);
+    h.run_steps(1);
+    h.drop_at(target);
+    h.run_steps(2);
+    let (theta, phi) = (h.state().theta_deg, h.state().phi_deg);
+    assert!((theta - 45.0).abs() < 1.0, "θ = {theta}");
+    assert!((phi - 135.0).abs() < 1.0, "φ = {phi}");
+    let p = h.state().wi_square_point();
+    assert!(
+        (p.x + 0.5).abs() < 0.02 && (p.y - 0.5).abs() < 0.02,
+        "{p:?}"
+    );
+    settle(&mut h);
+}
+
+#[test]
+fn a_delta_model_says_why_it_has_no_tree() {
+    let mut h = harness(small("ward"));
+    settle(&mut h);
+    h.state_mut().set_model("mirror").unwrap();
+    settle(&mut h);
+    let e = h.state().error().expect("an error for a delta model");
+    assert!(e.contains("Dirac delta"), "{e}");
+    assert!(h.state().tree_stats().is_none());
+    // And back to a continuous model: the error clears.
+    h.state_mut().set_model("lambert").unwrap();
+    settle(&mut h);
+    assert!(h.state().error().is_none());
+    assert!(h.state().tree_stats().is_some());
+}
+
+#[test]
+fn bad_launches_are_typed_errors() {
+    let bad = |l: Launch| l.resolve().expect_err("should be refused");
+    assert!(
+        bad(Launch {
+            model: "nope".into(),
+            ..Launch::default()
+        })
+        .contains("nope")
+    );
+    let e = bad(Launch {
+        params: vec!["alpha_x=-1".into()],
+        ..Launch::default()
+    });
+    assert!(e.contains("alpha_x"), "{e}");
+    let e = bad(Launch {
+        wi: Some(glam::Vec3::new(0.0, 0.5, -1.0)),
+        ..Launch::default()
+    });
+    assert!(e.contains("--wi"), "{e}");
+    let e = bad(Launch {
+        wi: Some(glam::Vec3::new(f32::NAN, 0.0, 1.0)),
+        ..Launch::default()
+    });
+    assert!(e.contains("--wi"), "{e}");
+    assert!(
+        bad(Launch {
+            samples: 0,
+            ..Launch::default()
+        })
+        .contains("--samples")
+    );
+}
+
+#[test]
+fn snapshot_of_the_window() {
+    let resolved = Launch {
+        model: "phong".into(),
+        params: vec!["n=200".into()],
+        samples: 5_000,
+        ..Launch::default()
+    }
+    .resolve()
+    .unwrap();
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(900.0, 560.0))
+        .wgpu()
+        .build_eframe(move |cc| ViewerApp::new(cc, resolved));
+    settle(&mut h);
+    h.snapshot("viewer_phong");
+}
