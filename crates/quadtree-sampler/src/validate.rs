@@ -85,6 +85,22 @@ impl CellGrid {
         }
     }
 
+    /// The cell indices in image order (rows top to bottom, columns left to right): square
+    /// grids put y = +1 in the top row, as a picture of the disk; polar grids have one row per
+    /// ring, the centre first, and one column per sector from φ = 0. Shared by every writer
+    /// of per-cell images (the `brdf test` EXR, the viewer's export).
+    #[must_use]
+    pub fn image_order(&self) -> Vec<usize> {
+        let (rows, cols) = self.dims();
+        match *self {
+            Self::Square { .. } => (0..rows)
+                .rev()
+                .flat_map(|r| (0..cols).map(move |c| r * cols + c))
+                .collect(),
+            Self::Polar { .. } => (0..rows * cols).collect(),
+        }
+    }
+
     /// Every dimension in 1..=4096.
     pub fn check(&self) -> Result<(), BuildError> {
         let (r, c) = self.dims();

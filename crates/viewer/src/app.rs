@@ -321,6 +321,57 @@ impl ViewerApp {
         self.map.direction_to_square(self.wi())
     }
 
+    /// One line per result for scripts: the tree's statistics, the sampling tallies and
+    /// the live χ² (what the Stats panel and the histogram caption show).
+    #[must_use]
+    pub fn summary(&self) -> String {
+        let mut out = format!(
+            "model {} wi theta={:.2} phi={:.2} sampler {}\n",
+            self.model.name,
+            self.theta_deg,
+            self.phi_deg,
+            self.sampler.name()
+        );
+        if let Some((_, s, seconds, albedo)) = &self.results.tree {
+            out += &format!(
+                "tree: {} nodes, {} leaves ({} live), depth {}, E[T] {:.3}, {} bytes, build {:.2} ms, albedo {:.4}\n",
+                s.nodes,
+                s.leaves,
+                s.live_leaves,
+                s.max_depth,
+                s.expected_trials,
+                s.bytes,
+                seconds * 1e3,
+                albedo
+            );
+        }
+        if let Some(s) = &self.results.samples {
+            out += &format!(
+                "samples: {} drawn, {} lost, {:.3} trials/sample, {:.0} ns/sample, {} bound violations\n",
+                s.drawn,
+                s.lost,
+                s.trials as f64 / (s.drawn - s.lost).max(1) as f64,
+                s.seconds * 1e9 / s.drawn.max(1) as f64,
+                s.bound_violations
+            );
+        }
+        if let Some(t) = self.live_test()
+            && let Some(c) = &t.chi2
+        {
+            out += &format!(
+                "chi2: {:.2}, dof {}, p {:.4}, {} at alpha {ALPHA}\n",
+                c.statistic,
+                c.dof,
+                c.p_value,
+                if t.passed() { "pass" } else { "reject" }
+            );
+        }
+        if let Some(e) = &self.results.error {
+            out += &format!("error: {e}\n");
+        }
+        out
+    }
+
     /// The last error (a delta model, a failed build), if any.
     #[must_use]
     pub fn error(&self) -> Option<&str> {

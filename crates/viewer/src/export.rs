@@ -117,13 +117,7 @@ pub fn write_cells(
     test: &LiveTest,
 ) -> Result<PathBuf, String> {
     let (rows, cols) = grid.dims();
-    let order: Vec<usize> = match grid {
-        CellGrid::Square { .. } => (0..rows)
-            .rev()
-            .flat_map(|r| (0..cols).map(move |c| r * cols + c))
-            .collect(),
-        CellGrid::Polar { .. } => (0..rows * cols).collect(),
-    };
+    let order = grid.image_order();
     let residual = test.residuals();
     let take = |v: &dyn Fn(usize) -> f64| order.iter().map(|&i| v(i) as f32).collect::<Vec<_>>();
     write_exr(

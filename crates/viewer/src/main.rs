@@ -79,7 +79,7 @@ fn run(args: Args) -> Result<(), String> {
     match args.screenshot {
         Some(path) => {
             let shot = if args.window {
-                viewer::screenshot::windowed(launch, size, timeout)?
+                viewer::screenshot::windowed(launch, size, timeout, args.export.as_deref())?
             } else {
                 viewer::screenshot::offscreen(launch, size, timeout, args.export.as_deref())?
             };
@@ -92,18 +92,14 @@ fn run(args: Args) -> Result<(), String> {
                 shot.image.width(),
                 shot.image.height()
             );
+            print!("{}", shot.summary);
             for f in shot.exported {
                 println!("wrote {}", f.display());
             }
             Ok(())
         }
         None => {
-            let options = eframe::NativeOptions {
-                viewport: egui::ViewportBuilder::default()
-                    .with_inner_size(size)
-                    .with_title("brdf-sampling viewer"),
-                ..Default::default()
-            };
+            let options = viewer::screenshot::native_options(size, "brdf-sampling viewer");
             eframe::run_native(
                 "brdf-sampling viewer",
                 options,

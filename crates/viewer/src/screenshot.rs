@@ -19,6 +19,8 @@ pub struct Shot {
     pub image: image::RgbaImage,
     /// Files written by `--export`, if asked.
     pub exported: Vec<PathBuf>,
+    /// [`ViewerApp::summary`] at the moment of the capture.
+    pub summary: String,
 }
 
 fn render_state() -> Result<egui_wgpu::RenderState, String> {
@@ -75,7 +77,25 @@ pub fn offscreen(
         }
         None => Vec::new(),
     };
-    Ok(Shot { image, exported })
+    let summary = harness.state().summary();
+    Ok(Shot {
+        image,
+        exported,
+        summary,
+    })
+}
+
+/// eframe's options for a window of `size` points. The egui pass stays single-sampled
+/// (`multisampling` 0), which the lobe view's copy pipeline assumes.
+#[must_use]
+pub fn native_options(size: egui::Vec2, title: &str) -> eframe::NativeOptions {
+    eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default()
+            .with_inner_size(size)
+            .with_title(title),
+        multisampling: 0,
+        ..Default::default()
+    }
 }
 
 /// Wraps the app: once it is idle, asks for a screenshot and closes the window.
@@ -88,13 +108,34 @@ struct Capture {
     notify: std::sync::mpsc::Sender<()>,
     start: Instant,
     timeout: Duration,
+    export: Option<PathBuf>,
+    exported: Arc<std::sync::Mutex<Result<Vec<PathBuf>, String>>>,
+    summary: Arc<std::sync::Mutex<String>>,
 }
 
 impl eframe::App for Capture {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         self.app.ui(ui, frame);
         let ctx = ui.ctx().clone();
-        if self.done.try_recv().is_ok() || self.start.elapsed() > self.timeout {
+        if self.done.try_recv().is_ok() {
+            if let Ok(mut s) = self.summary.lock() {
+                *s = self.app.summary();
+            }
+            // The same export as the UI's button, from the captured window.
+            if let Some(dir) = self.export.take() {
+                let image = self.shot.lock().ok().and_then(|s| s.clone());
+                let result = match image {
+                    Some(image) => self.app.export_to(&dir, &image, ctx.pixels_per_point()),
+                    None => Err("no screenshot to export from".into()),
+                };
+                if let Ok(mut slot) = self.exported.lock() {
+                    *slot = result;
+                }
+            }
+            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            return;
+        }
+        if self.start.elapsed() > self.timeout {
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
             return;
         }
@@ -118,17 +159,23 @@ impl eframe::App for Capture {
 }
 
 /// Opens a real window at `size` points, waits until the work is done, captures the
-/// window's framebuffer and closes. Needs a display (an X server such as Xvfb).
-pub fn windowed(launch: Resolved, size: egui::Vec2, timeout: Duration) -> Result<Shot, String> {
+/// window's framebuffer, optionally exports each view and the raw maps into `export`, and
+/// closes. Needs a display (an X server such as Xvfb).
+pub fn windowed(
+    launch: Resolved,
+    size: egui::Vec2,
+    timeout: Duration,
+    export: Option<&Path>,
+) -> Result<Shot, String> {
     let shot = Arc::new(std::sync::Mutex::new(None));
     let slot = Arc::clone(&shot);
+    let exported = Arc::new(std::sync::Mutex::new(Ok(Vec::new())));
+    let exported_slot = Arc::clone(&exported);
+    let export = export.map(Path::to_path_buf);
+    let summary = Arc::new(std::sync::Mutex::new(String::new()));
+    let summary_slot = Arc::clone(&summary);
     let (notify, done) = channel();
-    let options = eframe::NativeOptions {
-        viewport: egui::ViewportBuilder::default()
-            .with_inner_size(size)
-            .with_title("brdf-sampling viewer (screenshot)"),
-        ..Default::default()
-    };
+    let options = native_options(size, "brdf-sampling viewer (screenshot)");
     eframe::run_native(
         "brdf-sampling viewer",
         options,
@@ -142,6 +189,9 @@ pub fn windowed(launch: Resolved, size: egui::Vec2, timeout: Duration) -> Result
                 notify,
                 start: Instant::now(),
                 timeout,
+                export,
+                exported: exported_slot,
+                summary: summary_slot,
             }))
         }),
     )
@@ -154,9 +204,18 @@ pub fn windowed(launch: Resolved, size: egui::Vec2, timeout: Duration) -> Result
     let bytes = image.pixels.iter().flat_map(|c| c.to_array()).collect();
     let image = image::RgbaImage::from_raw(image.size[0] as u32, image.size[1] as u32, bytes)
         .ok_or("screenshot has the wrong size")?;
+    let exported = exported
+        .lock()
+        .map_err(|_| "export slot poisoned".to_string())?
+        .clone()?;
+    let summary = summary
+        .lock()
+        .map_err(|_| "summary slot poisoned".to_string())?
+        .clone();
     Ok(Shot {
         image,
-        exported: Vec::new(),
+        exported,
+        summary,
     })
 }
 

@@ -22,6 +22,7 @@ fn the_viewer_opens_a_real_window_under_xvfb_and_draws_something() {
     let dir = std::env::temp_dir().join(format!("viewer-window-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let png = dir.join("window.png");
+    let export = dir.join("export");
     let out = Command::new("xvfb-run")
         .args(["-a", "-s", "-screen 0 1600x1000x24"])
         .arg(env!("CARGO_BIN_EXE_viewer"))
@@ -36,6 +37,8 @@ fn the_viewer_opens_a_real_window_under_xvfb_and_draws_something() {
             "--size",
             "1200x800",
         ])
+        .arg("--export")
+        .arg(&export)
         .args(["--timeout", "240"])
         .output()
         .expect("running xvfb-run");
@@ -45,6 +48,11 @@ fn the_viewer_opens_a_real_window_under_xvfb_and_draws_something() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(out.status.success(), "the viewer failed under Xvfb:\n{log}");
+    // The summary printed at the capture: the tree, the 20 000 samples and a passing χ².
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("tree: "), "{log}");
+    assert!(stdout.contains("samples: 20000 drawn"), "{log}");
+    assert!(stdout.contains(" pass at alpha"), "{log}");
     let image = image::open(&png)
         .expect("the screenshot is a PNG")
         .to_rgba8();
@@ -53,6 +61,17 @@ fn the_viewer_opens_a_real_window_under_xvfb_and_draws_something() {
         viewer::screenshot::looks_rendered(&image, 200),
         "the window screenshot looks blank"
     );
+    // The export from the real window: each view is a non-blank crop.
+    for view in ["disk", "lobe", "observed", "expected", "difference"] {
+        let v = image::open(export.join(format!("{view}.png")))
+            .unwrap()
+            .to_rgba8();
+        assert!(
+            viewer::screenshot::looks_rendered(&v, 8),
+            "{view} looks blank"
+        );
+    }
+    assert!(export.join("maps.exr").exists() && export.join("cells.exr").exists());
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -82,6 +101,9 @@ fn the_offscreen_screenshot_mode_writes_a_picture_and_the_exports() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("model cook-torrance"), "{stdout}");
+    assert!(stdout.contains("samples: 10000 drawn"), "{stdout}");
     let image = image::open(&png).unwrap().to_rgba8();
     assert_eq!((image.width(), image.height()), (1000, 700));
     assert!(viewer::screenshot::looks_rendered(&image, 200));

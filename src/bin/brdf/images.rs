@@ -119,13 +119,7 @@ pub(crate) fn write_exr(
 ) -> exr::error::UnitResult {
     use exr::prelude::*;
     let (rows, cols) = grid.dims();
-    let order: Vec<usize> = match grid {
-        CellGrid::Square { .. } => (0..rows)
-            .rev()
-            .flat_map(|r| (0..cols).map(move |c| r * cols + c))
-            .collect(),
-        CellGrid::Polar { .. } => (0..rows * cols).collect(),
-    };
+    let order = grid.image_order();
     let channel = |name: &str, values: &dyn Fn(usize) -> f64| {
         AnyChannel::new(
             name,
