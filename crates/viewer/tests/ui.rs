@@ -175,3 +175,52 @@ fn snapshot_of_the_window() {
     settle(&mut h);
     h.snapshot("viewer_phong");
 }
+
+#[test]
+fn a_newer_request_abandons_the_stale_job() {
+    use quadtree_sampler::BuildConfig;
+    use quadtree_sampler::validate::CellGrid;
+    use std::sync::Arc;
+    use viewer::worker::{Request, SamplerKind, Update, Worker};
+    let phong: Arc<dyn brdf_core::Brdf> =
+        Arc::from(brdf_core::registry::create("phong", ["n=100"]).unwrap());
+    let request = |generation, samples| Request {
+        generation,
+        brdf: Arc::clone(&phong),
+        wi: glam::Vec3::new(0.5, 0.0, 0.866),
+        config: BuildConfig::default(),
+        sampler: SamplerKind::Rejection,
+        samples,
+        grid: CellGrid::Square { res: 8 },
+        seed: 3,
+        map_res: 32,
+        lobe_res: 8,
+    };
+    let worker = Worker::spawn(|| {});
+    // 10⁹ samples would take minutes; the newer request must cut it short.
+    worker.submit(request(1, 1_000_000_000));
+    std::thread::sleep(Duration::from_millis(200));
+    worker.submit(request(2, 20_000));
+    let start = Instant::now();
+    let mut stale_drawn = 0;
+    loop {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "generation 2 never finished"
+        );
+        let mut done = false;
+        for u in worker.poll() {
+            match u {
+                Update::Done(1) => panic!("the stale job ran to completion"),
+                Update::Samples(1, s) => stale_drawn = s.drawn,
+                Update::Done(2) => done = true,
+                _ => {}
+            }
+        }
+        if done {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(stale_drawn < 1_000_000_000);
+}
