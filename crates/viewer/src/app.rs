@@ -511,7 +511,7 @@ impl ViewerApp {
                 (_, Background::Fr) | (None, _) => None,
                 (Some((tree, ..)), bg) => Some(ctx.load_texture(
                     "leaves",
-                    views::leaf_image(tree, fr.res, bg, fr),
+                    views::leaf_image(tree, bg, fr),
                     TextureOptions::NEAREST,
                 )),
             };

@@ -1,7 +1,7 @@
 //! Exports: a PNG of each view (cropped from a full-window image) and the raw maps as EXR.
 
 use crate::app::LiveTest;
-use crate::worker::FrMap;
+use crate::worker::{FrMap, leaf_per_pixel};
 use eframe::egui::{ColorImage, Rect};
 use quadtree_sampler::Quadtree;
 use quadtree_sampler::validate::CellGrid;
@@ -77,15 +77,7 @@ pub fn write_maps(dir: &Path, fr: &FrMap, tree: Option<&Quadtree>) -> Result<Pat
     if let Some(tree) = tree {
         let nodes = tree.nodes();
         let volume = tree.volume().max(1e-300);
-        let leaves: Vec<usize> = (0..res * res)
-            .map(|k| {
-                let (i, j) = (k % res, k / res);
-                tree.leaf_at(glam::DVec2::new(
-                    (i as f64 + 0.5) / res as f64 * 2.0 - 1.0,
-                    1.0 - (j as f64 + 0.5) / res as f64 * 2.0,
-                ))
-            })
-            .collect();
+        let leaves = leaf_per_pixel(tree, res);
         channels.push((
             "leaf_probability",
             leaves

@@ -201,9 +201,7 @@ pub fn windowed(
         .map_err(|_| "screenshot slot poisoned".to_string())?
         .take()
         .ok_or_else(|| format!("no screenshot within {} s", timeout.as_secs()))?;
-    let bytes = image.pixels.iter().flat_map(|c| c.to_array()).collect();
-    let image = image::RgbaImage::from_raw(image.size[0] as u32, image.size[1] as u32, bytes)
-        .ok_or("screenshot has the wrong size")?;
+    let image = crate::export::to_rgba(&image);
     let exported = exported
         .lock()
         .map_err(|_| "export slot poisoned".to_string())?

@@ -1,7 +1,7 @@
 //! Drawing helpers of the 2D views: the f_r / leaf images of the disk view, the quadtree's
 //! leaf outlines, and the histogram cells of the validation grid.
 
-use crate::worker::FrMap;
+use crate::worker::{FrMap, leaf_per_pixel};
 use eframe::egui::{self, Color32, ColorImage, Mesh, Pos2, Rect, Shape, Stroke};
 use glam::Vec2;
 use quadtree_sampler::Quadtree;
@@ -70,10 +70,11 @@ pub fn fr_image(map: &FrMap, log: bool) -> ColorImage {
     ColorImage::new([map.res, map.res], pixels)
 }
 
-/// The leaves of `tree` rasterised at `res`² over the square: each pixel takes the value of
-/// the leaf holding its centre, coloured by `background` (which must not be `Fr`).
+/// The leaves of `tree` rasterised at the f_r map's resolution: each pixel takes the value of
+/// the leaf holding its centre, coloured by `background` (which must not be `Fr`); pixels
+/// outside the map's domain keep the background colour.
 #[must_use]
-pub fn leaf_image(tree: &Quadtree, res: usize, background: Background, fr: &FrMap) -> ColorImage {
+pub fn leaf_image(tree: &Quadtree, background: Background, fr: &FrMap) -> ColorImage {
     let nodes = tree.nodes();
     let volume: f64 = tree.volume().max(1e-300);
     let density = |i: usize| {
@@ -84,19 +85,13 @@ pub fn leaf_image(tree: &Quadtree, res: usize, background: Background, fr: &FrMa
         .leaves()
         .map(|(i, _)| density(i))
         .fold(0.0f64, f64::max);
-    let pixels = (0..res * res)
-        .map(|k| {
-            let (i, j) = (k % res, k / res);
-            let p = glam::DVec2::new(
-                (i as f64 + 0.5) / res as f64 * 2.0 - 1.0,
-                1.0 - (j as f64 + 0.5) / res as f64 * 2.0,
-            );
-            // Same domain as the f_r map (which has the same resolution when called from the app).
-            let outside = fr.res == res && fr.values[k].is_nan();
-            if outside {
+    let pixels = leaf_per_pixel(tree, fr.res)
+        .into_iter()
+        .zip(&fr.values)
+        .map(|(leaf, v)| {
+            if v.is_nan() {
                 return OUTSIDE;
             }
-            let leaf = tree.leaf_at(p);
             let t = match background {
                 Background::LeafAcceptance => nodes[leaf].acceptance() as f32,
                 _ => normalise(density(leaf) as f32, max_density as f32, true),
@@ -104,7 +99,7 @@ pub fn leaf_image(tree: &Quadtree, res: usize, background: Background, fr: &FrMa
             rgb(viridis(t))
         })
         .collect();
-    ColorImage::new([res, res], pixels)
+    ColorImage::new([fr.res, fr.res], pixels)
 }
 
 /// Screen position of square point `p` ∈ [−1,1]² in `rect` (v up).

@@ -10,7 +10,7 @@
 
 use brdf_core::geometry::luminance;
 use brdf_core::{Brdf, DiskMap};
-use glam::{Vec2, Vec3};
+use glam::{DVec2, Vec2, Vec3};
 use quadtree_sampler::validate::{CellGrid, Validation};
 use quadtree_sampler::{
     Baseline, BaselineSampler, BuildConfig, DEFAULT_MIX, DirectionSampler, Quadtree,
@@ -63,12 +63,6 @@ impl SamplerKind {
             Self::Uniform => "uniform",
             Self::Analytic => "analytic",
         }
-    }
-
-    /// Whether this sampler uses the quadtree.
-    #[must_use]
-    pub fn uses_tree(self) -> bool {
-        matches!(self, Self::Rejection | Self::Warp)
     }
 }
 
@@ -313,6 +307,7 @@ pub fn process(req: &Request, live: &dyn Fn() -> bool, send: &dyn Fn(Update)) {
     }
     let t0 = Instant::now();
     // The tree is built (and shown) whichever sampler draws: it is what the lab is about.
+    // (The warp below builds its own tree, always over the concentric map.)
     let tree_sampler = match QuadtreeSampler::new(brdf, req.wi, req.config) {
         Ok(s) => s,
         Err(e) => {
@@ -406,22 +401,36 @@ pub fn process(req: &Request, live: &dyn Fn() -> bool, send: &dyn Fn(Update)) {
     send(Update::Done(g));
 }
 
+/// The centre of pixel `k` (row-major, row 0 at v = +1) of a `res`² image of the square
+/// [−1,1]². Every per-pixel map of the viewer (f_r, leaves, exports) uses it.
+#[must_use]
+pub fn pixel_centre(k: usize, res: usize) -> DVec2 {
+    let (i, j) = (k % res, k / res);
+    DVec2::new(
+        (i as f64 + 0.5) / res as f64 * 2.0 - 1.0,
+        1.0 - (j as f64 + 0.5) / res as f64 * 2.0,
+    )
+}
+
+/// The leaf of `tree` holding each pixel centre of a `res`² image (see [`pixel_centre`]).
+#[must_use]
+pub fn leaf_per_pixel(tree: &Quadtree, res: usize) -> Vec<usize> {
+    (0..res * res)
+        .map(|k| tree.leaf_at(pixel_centre(k, res)))
+        .collect()
+}
+
 /// Y(f_r(wi, ·)) at `res`² pixel centres of the square [−1,1]² through `map`.
 #[must_use]
 pub fn fr_map(brdf: &dyn Brdf, wi: Vec3, map: DiskMap, res: usize) -> FrMap {
     let values = (0..res * res)
-        .map(|k| {
-            let (i, j) = (k % res, k / res);
-            let p = Vec2::new(
-                (i as f32 + 0.5) / res as f32 * 2.0 - 1.0,
-                1.0 - (j as f32 + 0.5) / res as f32 * 2.0,
-            );
-            match map.square_to_direction(p) {
+        .map(
+            |k| match map.square_to_direction(pixel_centre(k, res).as_vec2()) {
                 Some(wo) if wo.z > 0.0 => luminance(brdf.eval(wi, wo)),
                 Some(_) => 0.0,
                 None => f32::NAN,
-            }
-        })
+            },
+        )
         .collect();
     FrMap { res, map, values }
 }
