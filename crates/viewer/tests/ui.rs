@@ -224,3 +224,29 @@ fn a_newer_request_abandons_the_stale_job() {
     }
     assert!(stale_drawn < 1_000_000_000);
 }
+
+#[test]
+fn the_live_verdict_rejects_a_sampler_that_does_not_follow_f_cos() {
+    // Cosine sampling of a Phong lobe (n = 200): the histograms must reject it.
+    let mut h = harness(Launch {
+        params: vec!["n=200".into()],
+        ..small("phong")
+    });
+    settle(&mut h);
+    assert!(h.state().live_test().unwrap().passed());
+    h.get_by_role_and_label(Role::ComboBox, "sampler").click();
+    h.run_steps(2);
+    h.get_by_label("cosine").click();
+    h.run_steps(2);
+    settle(&mut h);
+    let test = h
+        .state()
+        .live_test()
+        .expect("histograms for the cosine sampler");
+    assert_eq!(test.samples, 20_000);
+    let p = test.chi2.as_ref().unwrap().p_value;
+    assert!(
+        !test.passed() && p < 1e-6,
+        "cosine vs phong n=200 passed: p = {p}"
+    );
+}
