@@ -231,6 +231,21 @@ pub struct Peak {
 }
 
 impl Peak {
+    /// Takes `other`'s maxima where they are larger (strictly: on ties the earlier point
+    /// stays). Merging the peaks of consecutive runs of points in order gives exactly the
+    /// peak of seeing all the points in that order.
+    #[inline]
+    pub fn merge(&mut self, other: &Self) {
+        if other.f > self.f {
+            self.f = other.f;
+            self.p = other.p;
+        }
+        if other.fj > self.fj {
+            self.fj = other.fj;
+            self.q = other.q;
+        }
+    }
+
     #[inline]
     fn see(&mut self, f: f64, c: &ChartPoint, q: DVec2) {
         if f > self.f {
@@ -459,6 +474,107 @@ pub(crate) fn refine(
         .zip(parts)
         .map(|(q, c)| refine(map, q, c, rule, 0.5 * tol, depth - 1, f, peak))
         .sum()
+}
+
+/// One application of the rule over a cell of an adaptive integration, remembered together
+/// with its quadrants' cells once they are computed.
+///
+/// The build keeps a node's cells and hands each child the subtree of its quadrant, so a
+/// child's integration re-uses every application its parent's already made: a rule applied
+/// to the same (dyadic, exactly representable) square gives the same value and peak, so the
+/// memoised integration is bit-identical to the plain one at a fraction of its cost.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Cell {
+    /// One application of the rule over the cell.
+    pub value: f64,
+    /// The largest values that application met.
+    pub peak: Peak,
+    /// The quadrants' cells, once computed, in [`Rect::quadrants`] order.
+    pub quads: Option<alloc::boxed::Box<[Cell; 4]>>,
+}
+
+impl Cell {
+    /// One application of the rule over `rect`.
+    pub fn once(map: DiskMap, rect: &Rect, rule: &UnitRule, f: &impl Fn(DVec3) -> f64) -> Self {
+        let mut peak = Peak::default();
+        let value = integrate_once_peak(map, rect, rule, f, &mut peak);
+        Self {
+            value,
+            peak,
+            quads: None,
+        }
+    }
+
+    /// The four quadrant cells, taken out of this one (`None` when never computed).
+    pub fn into_quads(self) -> [Option<Cell>; 4] {
+        match self.quads {
+            Some(q) => (*q).map(Some),
+            None => [None, None, None, None],
+        }
+    }
+}
+
+/// Runs `a` and `b`, on two threads when `par` and the `rayon` feature allow it.
+#[inline]
+pub(crate) fn join<A: Send, B: Send>(
+    par: bool,
+    a: impl FnOnce() -> A + Send,
+    b: impl FnOnce() -> B + Send,
+) -> (A, B) {
+    #[cfg(feature = "rayon")]
+    if par {
+        return rayon::join(a, b);
+    }
+    let _ = par;
+    (a(), b())
+}
+
+/// [`refine`] over remembered cells: computes only the applications `cell` does not hold yet
+/// (and keeps them in it). Same value and peak as [`refine`] from `cell.value`. The top
+/// `par_levels` levels of the recursion run their quadrants in parallel (feature `rayon`);
+/// the result does not depend on it.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn refine_cells(
+    map: DiskMap,
+    rect: &Rect,
+    cell: &mut Cell,
+    rule: &UnitRule,
+    tol: f64,
+    depth: u32,
+    f: &(impl Fn(DVec3) -> f64 + Sync),
+    peak: &mut Peak,
+    par_levels: u32,
+) -> f64 {
+    let quads = rect.quadrants();
+    let coarse = cell.value;
+    let cells = cell
+        .quads
+        .get_or_insert_with(|| alloc::boxed::Box::new(quads.map(|q| Cell::once(map, &q, rule, f))));
+    for c in cells.iter() {
+        peak.merge(&c.peak);
+    }
+    let fine: f64 = cells.iter().map(|c| c.value).sum();
+    if depth == 0 || (fine - coarse).abs() <= tol {
+        return fine;
+    }
+    let par = par_levels > 0;
+    let next = par_levels.saturating_sub(1);
+    let one = |q: &Rect, c: &mut Cell| {
+        let mut local = Peak::default();
+        let v = refine_cells(map, q, c, rule, 0.5 * tol, depth - 1, f, &mut local, next);
+        (v, local)
+    };
+    let [c0, c1, c2, c3] = &mut **cells;
+    let ((r0, r1), (r2, r3)) = join(
+        par,
+        || join(par, || one(&quads[0], c0), || one(&quads[1], c1)),
+        || join(par, || one(&quads[2], c2), || one(&quads[3], c3)),
+    );
+    let parts = [r0, r1, r2, r3];
+    for (_, p) in &parts {
+        peak.merge(p);
+    }
+    parts.iter().map(|(v, _)| v).sum()
 }
 
 /// The box of a leaf in its sampling chart, and the map from chart coordinates back.

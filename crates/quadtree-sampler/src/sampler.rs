@@ -91,8 +91,8 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
     /// non-zero and above the horizon). Delta models are an error.
     pub fn new(brdf: &'a B, wi: Vec3, config: BuildConfig) -> Result<Self, BuildError> {
         let wi = unit_direction_above(wi)?;
-        let ctx = Context::new(brdf, wi, config);
-        let tree = Quadtree::build(&ctx)?;
+        let (ctx, cells) = Context::new(brdf, wi, config);
+        let tree = Quadtree::build(&ctx, cells)?;
         let v = tree.volume();
         let j = f64::from(config.map.square_area_per_projected_solid_angle());
         Ok(Self {

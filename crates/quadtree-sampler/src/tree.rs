@@ -1,9 +1,7 @@
 //! The arena quadtree (seed §2.1, Fig. 1–2): nodes, the split (`particionar`) and the
 //! target-trials refinement.
 
-use crate::chart::{
-    Chart, Peak, Proposal, Rect, UnitRule, integrate_adaptive, integrate_once_peak, refine,
-};
+use crate::chart::{Cell, Chart, Peak, Proposal, Rect, UnitRule, join, refine_cells};
 use crate::config::{BuildConfig, IntegrationRule};
 use crate::error::BuildError;
 use alloc::collections::BinaryHeap;
@@ -145,10 +143,14 @@ pub(crate) struct Context<'a, B: Brdf + ?Sized> {
     /// Absolute floor of every node's integration tolerance: the relative tolerance times an
     /// estimate of the total volume (a node's error below it cannot be seen by any test).
     tol_floor: f64,
+    /// Levels of each node's adaptive integration whose quadrants run in parallel.
+    par_levels: u32,
 }
 
 impl<'a, B: Brdf + ?Sized> Context<'a, B> {
-    pub(crate) fn new(brdf: &'a B, wi: Vec3, config: BuildConfig) -> Self {
+    /// The context, and the root's integration cells (the estimate of the total volume is an
+    /// adaptive integration of the root, which the root's own evaluation then continues).
+    pub(crate) fn new(brdf: &'a B, wi: Vec3, config: BuildConfig) -> (Self, Cell) {
         let rule = match config.rule {
             IntegrationRule::Midpoint { n } => UnitRule::midpoint(usize::from(n)),
             IntegrationRule::GaussLegendre { n } => UnitRule::new(usize::from(n)),
@@ -166,13 +168,32 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             rule,
             hints,
             tol_floor: 0.0,
+            // Every level: the work of a sharp lobe sits in one quadrant after another, so a
+            // fixed number of top levels would leave one thread with all of it. A join that is
+            // not stolen costs far less than the 4 × 36 evaluations of the cell it splits.
+            par_levels: if cfg!(feature = "rayon") && config.parallel {
+                u32::MAX
+            } else {
+                0
+            },
         };
         let root = Rect::square(-1.0, -1.0, 2.0);
         let f = |w: DVec3| ctx.f(w);
-        let coarse = crate::chart::integrate_once(config.map, &root, &ctx.rule, &f);
-        let estimate = integrate_adaptive(config.map, &root, &ctx.rule, 1e-3 * coarse.abs(), 6, &f);
+        let mut cell = Cell::once(config.map, &root, &ctx.rule, &f);
+        let tol = 1e-3 * cell.value.abs();
+        let estimate = refine_cells(
+            config.map,
+            &root,
+            &mut cell,
+            &ctx.rule,
+            tol,
+            6,
+            &f,
+            &mut Peak::default(),
+            ctx.par_levels,
+        );
         ctx.tol_floor = config.integration_tolerance * 1e-2 * estimate.abs();
-        ctx
+        (ctx, cell)
     }
 
     /// f_r's luminance at a local direction (the density the tree follows).
@@ -188,7 +209,9 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             .map_or(0.0, |c| self.f(c.w) * c.jacobian)
     }
 
-    fn evaluate(&self, rect: &Rect) -> Evaluation {
+    /// Evaluates the node `rect`, continuing from the integration cells `cells` its parent
+    /// left for it; returns its own cells for its children.
+    fn evaluate(&self, rect: &Rect, cells: Option<Cell>) -> (Evaluation, Option<Cell>) {
         let map = self.config.map;
         let mut prop = Proposal::for_node(map, rect);
         // The angle chart is needed only where f is unbounded at the rim; elsewhere the seed's
@@ -206,27 +229,30 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             };
         }
         if map == DiskMap::Orthographic && rect.radius_range().0 >= 1.0 {
-            return Evaluation {
+            let e = Evaluation {
                 v1: 0.0,
                 bound: 0.0,
                 proposal: prop,
             };
+            return (e, None);
         }
         let f = |w: DVec3| self.f(w);
         // One application of the rule sets the tolerance and is the refinement's start (the
-        // node's points are integrated once, not twice).
-        let mut peak = Peak::default();
-        let coarse = integrate_once_peak(map, rect, &self.rule, &f, &mut peak);
-        let tol = (self.config.integration_tolerance * coarse.abs()).max(self.tol_floor);
-        let v1 = refine(
+        // node's points are integrated once, not twice; and not at all when the parent's
+        // integration already applied the rule here).
+        let mut cell = cells.unwrap_or_else(|| Cell::once(map, rect, &self.rule, &f));
+        let mut peak = cell.peak;
+        let tol = (self.config.integration_tolerance * cell.value.abs()).max(self.tol_floor);
+        let v1 = refine_cells(
             map,
             rect,
-            coarse,
+            &mut cell,
             &self.rule,
             tol,
             u32::from(self.config.integration_depth),
             &f,
             &mut peak,
+            self.par_levels,
         )
         .max(0.0);
         // A bound below the node's mean height is certainly wrong (a peak between the points
@@ -251,11 +277,12 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         } else {
             4.0 * mean
         };
-        Evaluation {
+        let e = Evaluation {
             v1,
             bound,
             proposal: prop,
-        }
+        };
+        (e, Some(cell))
     }
 
     /// M: the largest h found on a dense grid (edges and corners included), at the peak hints
@@ -312,13 +339,22 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             let q = prop.coordinates(map, wc).clamp(lo, hi);
             consider(self.height(prop, rect, q), q);
         }
-        let mut max = best[0].0.max(0.0);
-        for &(h0, q0) in &best {
+        // The three searches are independent: run them side by side (the largest of three
+        // is the same in any order).
+        let climb = |(h0, q0): (f64, DVec2)| {
             if h0 > 0.0 {
-                max = max.max(self.compass_search(prop, rect, q0, h0, span / g as f64));
+                self.compass_search(prop, rect, q0, h0, span / g as f64)
+            } else {
+                0.0
             }
-        }
-        max * self.config.bound_safety
+        };
+        let par = self.par_levels > 0;
+        let (h0, (h1, h2)) = join(
+            par,
+            || climb(best[0]),
+            || join(par, || climb(best[1]), || climb(best[2])),
+        );
+        best[0].0.max(0.0).max(h0).max(h1).max(h2) * self.config.bound_safety
     }
 
     /// Looks at f along the node's own arc of the rim (nine points on each arc inside the
@@ -379,13 +415,20 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         h
     }
 
-    fn evaluate_all(&self, rects: &[Rect]) -> Vec<Evaluation> {
+    /// Evaluates nodes (in parallel when enabled), each from its inherited cells.
+    fn evaluate_all(&self, nodes: Vec<(Rect, Option<Cell>)>) -> Vec<(Evaluation, Option<Cell>)> {
         #[cfg(feature = "rayon")]
         if self.config.parallel {
             use rayon::prelude::*;
-            return rects.par_iter().map(|r| self.evaluate(r)).collect();
+            return nodes
+                .into_par_iter()
+                .map(|(r, c)| self.evaluate(&r, c))
+                .collect();
         }
-        rects.iter().map(|r| self.evaluate(r)).collect()
+        nodes
+            .into_iter()
+            .map(|(r, c)| self.evaluate(&r, c))
+            .collect()
     }
 }
 
@@ -422,7 +465,10 @@ impl Quadtree {
     /// Builds the tree of f_r(wi, ·) (`wi` local, above the horizon), splitting every node
     /// whose P is below the threshold (`particionar`), then, in target mode, refining the
     /// leaves with the largest wasted volume until E\[T\] ≤ target.
-    pub(crate) fn build<B: Brdf + ?Sized>(ctx: &Context<'_, B>) -> Result<Self, BuildError> {
+    pub(crate) fn build<B: Brdf + ?Sized>(
+        ctx: &Context<'_, B>,
+        root_cells: Cell,
+    ) -> Result<Self, BuildError> {
         ctx.config.validate()?;
         if ctx.brdf.is_delta() {
             return Err(BuildError::DeltaModel {
@@ -432,7 +478,9 @@ impl Quadtree {
         let cfg = &ctx.config;
         let budget = cfg.node_budget as usize;
         let root_rect = Rect::square(-1.0, -1.0, 2.0);
-        let e = ctx.evaluate(&root_rect);
+        let (e, cells) = ctx.evaluate(&root_rect, Some(root_cells));
+        // Each leaf's integration cells, until it splits and hands them to its children.
+        let mut pending = alloc::vec![cells];
         let mut tree = Self {
             nodes: alloc::vec![Node {
                 x: -1.0,
@@ -468,7 +516,7 @@ impl Quadtree {
                 }
             }
             let before: f64 = split.iter().map(|&i| tree.nodes[i as usize].v1).sum();
-            frontier = tree.split(ctx, &split);
+            frontier = tree.split(ctx, &split, &mut pending);
             let after: f64 = frontier.iter().map(|&i| tree.nodes[i as usize].v1).sum();
             total += after - before;
         }
@@ -477,19 +525,30 @@ impl Quadtree {
         let target = cfg.target_trials.map_or(1.0 / cfg.split_threshold, |t| {
             t.min(1.0 / cfg.split_threshold)
         });
-        tree.refine_to_target(ctx, target);
+        tree.refine_to_target(ctx, target, &mut pending);
         tree.sum_up();
         Ok(tree)
     }
 
-    /// Splits the given leaves into four children each, evaluates the children, and returns
-    /// their indices.
-    fn split<B: Brdf + ?Sized>(&mut self, ctx: &Context<'_, B>, parents: &[u32]) -> Vec<u32> {
+    /// Splits the given leaves into four children each, evaluates the children (each from its
+    /// quadrant of the parent's integration cells), and returns their indices.
+    fn split<B: Brdf + ?Sized>(
+        &mut self,
+        ctx: &Context<'_, B>,
+        parents: &[u32],
+        pending: &mut Vec<Option<Cell>>,
+    ) -> Vec<u32> {
         let mut rects = Vec::with_capacity(4 * parents.len());
+        let mut inherited = Vec::with_capacity(4 * parents.len());
         let first_new = self.nodes.len() as u32;
         for (k, &p) in parents.iter().enumerate() {
             let n = self.nodes[p as usize];
             self.nodes[p as usize].first_child = first_new + 4 * k as u32;
+            inherited.extend(
+                pending[p as usize]
+                    .take()
+                    .map_or([None, None, None, None], Cell::into_quads),
+            );
             let h = 0.5 * n.size;
             for (dx, dy) in [(0.0, 0.0), (h, 0.0), (0.0, h), (h, h)] {
                 let (x, y) = (n.x + dx, n.y + dy);
@@ -502,8 +561,9 @@ impl Quadtree {
                 ));
             }
         }
-        let evals = ctx.evaluate_all(&rects.iter().map(|r| r.0).collect::<Vec<_>>());
-        for ((_, x, y, s, depth), e) in rects.into_iter().zip(evals) {
+        let evals = ctx.evaluate_all(rects.iter().map(|r| r.0).zip(inherited).collect());
+        for ((_, x, y, s, depth), (e, cells)) in rects.into_iter().zip(evals) {
+            pending.push(cells);
             self.nodes.push(Node {
                 x,
                 y,
@@ -520,7 +580,12 @@ impl Quadtree {
 
     /// SPEC §3's target mode: split, in batches, the live leaves with the largest reducible
     /// wasted volume (box/safety − v1: the safety factor's share cannot be split away) until E\[T\] ≤ target, the budget is spent, or no leaf can split.
-    fn refine_to_target<B: Brdf + ?Sized>(&mut self, ctx: &Context<'_, B>, target: f64) {
+    fn refine_to_target<B: Brdf + ?Sized>(
+        &mut self,
+        ctx: &Context<'_, B>,
+        target: f64,
+        pending: &mut Vec<Option<Cell>>,
+    ) {
         #[derive(PartialEq)]
         struct Waste(f64, u32);
         impl Eq for Waste {}
@@ -568,7 +633,7 @@ impl Quadtree {
                 boxes -= n.box_volume();
                 v1s -= n.v1;
             }
-            for c in self.split(ctx, &batch) {
+            for c in self.split(ctx, &batch, pending) {
                 let n = &self.nodes[c as usize];
                 if n.v1 > 0.0 {
                     boxes += n.box_volume();

@@ -49,7 +49,8 @@ impl<'a, B: Brdf + ?Sized> WarpSampler<'a, B> {
             map: DiskMap::Concentric,
             ..config
         };
-        let tree = Quadtree::build(&Context::new(brdf, wi, config))?;
+        let (ctx, cells) = Context::new(brdf, wi, config);
+        let tree = Quadtree::build(&ctx, cells)?;
         let volume = tree.volume();
         // A tree with no volume (f ≡ 0) is warped by the uniform component alone.
         let mix = if volume > 0.0 { mix } else { 1.0 };
