@@ -10,7 +10,7 @@
 //! | seed | here |
 //! | --- | --- |
 //! | `Codificador` | [`Encoder`] (and [`brdf_core::DiskMap`]) |
-//! | `Nodo`, `Region` | [`Node`] in the arena [`Quadtree`] |
+//! | `Nodo`, `Region` | [`Node`] in the arena [`Quadtree`]; [`PackedNode`] in the sampling layout [`PackedTree`] |
 //! | `particionar` | the build inside [`QuadtreeSampler::new`] |
 //! | `seleccionarRegion` | [`QuadtreeSampler::select_region`] |
 //! | `muestrear` | [`QuadtreeSampler::sample_leaf`] |
@@ -61,6 +61,7 @@ pub mod colormap;
 mod config;
 mod encoder;
 mod error;
+mod packed;
 mod sampler;
 mod table;
 mod tree;
@@ -71,6 +72,7 @@ pub use brdf_core;
 pub use config::{BuildConfig, IntegrationRule};
 pub use encoder::{Encoder, refleja};
 pub use error::BuildError;
+pub use packed::{PackedNode, PackedTree, Selected};
 pub use sampler::{
     Baseline, BaselineSampler, DirectionSampler, MAX_TRIALS, QuadtreeSampler, Sample, uniform_f32,
     uniform_f64, weight_luminance,

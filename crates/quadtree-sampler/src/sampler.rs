@@ -4,7 +4,8 @@
 use crate::chart::ChartPoint;
 use crate::config::BuildConfig;
 use crate::error::BuildError;
-use crate::tree::{Context, Quadtree, TreeStats, albedo_of_volume};
+use crate::packed::{PackedTree, Selected};
+use crate::tree::{Quadtree, TreeStats, albedo_of_volume};
 use brdf_core::geometry::{above_horizon, luminance, unit_direction_above};
 use brdf_core::{Brdf, BrdfSample};
 use core::sync::atomic::{AtomicU64, Ordering};
@@ -76,7 +77,7 @@ pub struct QuadtreeSampler<'a, B: Brdf + ?Sized> {
     brdf: &'a B,
     wi: Vec3,
     config: BuildConfig,
-    tree: Quadtree,
+    tree: PackedTree,
     /// J / V: pdf per unit solid angle = f · cos θ · this.
     pdf_scale: f64,
     violations: AtomicU64,
@@ -91,8 +92,7 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
     /// non-zero and above the horizon). Delta models are an error.
     pub fn new(brdf: &'a B, wi: Vec3, config: BuildConfig) -> Result<Self, BuildError> {
         let wi = unit_direction_above(wi)?;
-        let (ctx, cells) = Context::new(brdf, wi, config);
-        let tree = Quadtree::build(&ctx, cells)?;
+        let tree = PackedTree::new(&Quadtree::new(brdf, wi, config)?);
         let v = tree.volume();
         let j = f64::from(config.map.square_area_per_projected_solid_angle());
         Ok(Self {
@@ -113,9 +113,9 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
         self.tree.scale_bounds(factor);
     }
 
-    /// The tree.
+    /// The tree, in its sampling layout ([`PackedTree::unpack`] gives the build's).
     #[must_use]
-    pub fn tree(&self) -> &Quadtree {
+    pub fn tree(&self) -> &PackedTree {
         &self.tree
     }
 
@@ -141,7 +141,7 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
     /// Tree counts and E\[T\].
     #[must_use]
     pub fn stats(&self) -> TreeStats {
-        self.tree.stats()
+        self.tree.stats().clone()
     }
 
     /// How many times sampling met f > M (a bound that was not one). Should stay 0.
@@ -157,42 +157,20 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
     }
 
     /// `seleccionarRegion`: descends from the root, choosing child i with probability
-    /// v1_i / Σ v1, reusing one uniform `u` ∈ [0, 1) by rescaling. Returns a leaf with v1 > 0
-    /// (or the root when the tree is empty).
+    /// v1_i / Σ v1 (stored in 31-bit fixed point, see [`PackedTree`]), reusing one uniform
+    /// `u` ∈ [0, 1) by rescaling. Returns a leaf with v1 > 0 (or a leaf holding nothing when
+    /// the whole tree is empty) and its square.
     #[must_use]
-    pub fn select_region(&self, mut u: f64) -> usize {
-        let nodes = self.tree.nodes();
-        let mut i = 0;
-        while !nodes[i].is_leaf() {
-            let c = nodes[i].first_child as usize;
-            let total: f64 = (c..c + 4).map(|k| nodes[k].v1).sum();
-            let mut target = u * total;
-            let mut pick = None;
-            for (k, node) in nodes.iter().enumerate().skip(c).take(4) {
-                let v = node.v1;
-                if v > 0.0 {
-                    pick = Some(k);
-                    if target < v {
-                        u = (target / v).clamp(0.0, 1.0 - f64::EPSILON);
-                        break;
-                    }
-                    target -= v;
-                }
-            }
-            match pick {
-                Some(k) => i = k,
-                None => return i,
-            }
-        }
-        i
+    pub fn select_region(&self, u: f64) -> Selected {
+        self.tree.select(u)
     }
 
-    /// `muestrear`: rejection in leaf `leaf`: a point uniform in the leaf's proposal box, a
-    /// height uniform in [0, M); accept when the height is below f (times the chart's
+    /// `muestrear`: rejection in the selected leaf: a point uniform in the leaf's proposal
+    /// box, a height uniform in [0, M); accept when the height is below f (times the chart's
     /// Jacobian). Returns the accepted point and the number of trials.
     pub fn sample_leaf<R: Rng + ?Sized>(
         &self,
-        leaf: usize,
+        leaf: &Selected,
         rng: &mut R,
     ) -> Option<(ChartPoint, u32)> {
         self.rejection(leaf, rng).map(|(c, _, _, t)| (c, t))
@@ -202,21 +180,25 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
     /// direction as the unit f32 vector a caller sees and f_r there (RGB). f is evaluated once
     /// per trial, at exactly that vector, so the accepted value *is* `eval(wi, wo)` and its
     /// luminance is what [`QuadtreeSampler::pdf`] computes: no second evaluation is needed.
+    /// One 64-bit draw places the point (32 bits per axis: 2⁻³² of the leaf's side) and one
+    /// more the height.
     fn rejection<R: Rng + ?Sized>(
         &self,
-        leaf: usize,
+        leaf: &Selected,
         rng: &mut R,
     ) -> Option<(ChartPoint, Vec3, Vec3, u32)> {
-        let node = &self.tree.nodes()[leaf];
-        let (prop, rect, m) = (node.proposal, node.rect(), node.bound);
-        if !(node.v1 > 0.0 && m > 0.0) {
+        let (prop, m) = self.tree.proposal(leaf);
+        if !(m > 0.0) {
             return None;
         }
         let span = prop.hi - prop.lo;
+        const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
         for trial in 1..=MAX_TRIALS {
-            let q = prop.lo + span * DVec2::new(uniform_f64(rng), uniform_f64(rng));
+            let r = rng.next_u64();
+            let uv = DVec2::new((r >> 32) as f64, (r & 0xffff_ffff) as f64) * TO_UNIT;
+            let q = prop.lo + span * uv;
             let z = m * uniform_f64(rng);
-            let Some(c) = prop.point(self.config.map, &rect, q) else {
+            let Some(c) = prop.point(self.config.map, &leaf.rect, q) else {
                 continue;
             };
             let wo = c.w.as_vec3().normalize_or_zero();
@@ -236,8 +218,8 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
     /// Draws one direction: select a region, then rejection-sample it. f_r is evaluated once
     /// per trial and never again for the accepted sample.
     pub fn sample<R: Rng + ?Sized>(&self, rng: &mut R) -> Option<Sample> {
-        let leaf = self.select_region(uniform_f64(rng));
-        let (_, wo, f, trials) = self.rejection(leaf, rng)?;
+        let leaf = self.tree.select(uniform_f64(rng));
+        let (_, wo, f, trials) = self.rejection(&leaf, rng)?;
         if !above_horizon(wo) {
             return None;
         }

@@ -116,6 +116,12 @@ fn rim_arc_points(rect: &Rect) -> Vec<f64> {
     points
 }
 
+/// `m` as an f32 no smaller than it (an upper bound stays one).
+pub(crate) fn round_up_f32(m: f64) -> f32 {
+    let b = m as f32;
+    if f64::from(b) < m { b.next_up() } else { b }
+}
+
 /// What [`Context::rim_probe`] found: f's behaviour approaching the rim inside a node.
 #[derive(Clone, Copy, Debug)]
 enum RimProbe {
@@ -277,6 +283,9 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         } else {
             4.0 * mean
         };
+        // The sampling layout keeps M in f32: round it up here, so that the tree's E[T] (and
+        // every decision taken on it) is the one sampling will see.
+        let bound = f64::from(round_up_f32(bound));
         let e = Evaluation {
             v1,
             bound,
@@ -445,7 +454,8 @@ pub struct TreeStats {
     pub max_depth: u8,
     /// Leaves per depth.
     pub depth_histogram: Vec<usize>,
-    /// Bytes of the node arena.
+    /// Bytes of the nodes, in the layout the counts were taken from: 80 per node in the
+    /// build's [`Quadtree`], 16 in the sampling layout ([`crate::PackedTree`]).
     pub bytes: usize,
     /// E\[T\] = Σ box volumes / Σ v1 over live leaves: expected rejection trials per sample.
     pub expected_trials: f64,
@@ -462,6 +472,29 @@ pub struct Quadtree {
 }
 
 impl Quadtree {
+    /// Builds the tree of f_r(wi, ·) for a local `wi` (normalised here; it must be finite,
+    /// non-zero and above the horizon). Delta models are an error. This is the build's own
+    /// layout, with everything each node's evaluation found; samplers use its
+    /// [`crate::PackedTree`].
+    pub fn new<B: Brdf + ?Sized>(
+        brdf: &B,
+        wi: Vec3,
+        config: BuildConfig,
+    ) -> Result<Self, BuildError> {
+        let wi = brdf_core::geometry::unit_direction_above(wi)?;
+        let (ctx, cells) = Context::new(brdf, wi, config);
+        Self::build(&ctx, cells)
+    }
+
+    /// A tree from its parts (nodes in arena order: children after parents).
+    pub(crate) fn from_parts(nodes: Vec<Node>, map: DiskMap, budget_exhausted: bool) -> Self {
+        Self {
+            nodes,
+            map,
+            budget_exhausted,
+        }
+    }
+
     /// Builds the tree of f_r(wi, ·) (`wi` local, above the horizon), splitting every node
     /// whose P is below the threshold (`particionar`), then, in target mode, refining the
     /// leaves with the largest wasted volume until E\[T\] ≤ target.
@@ -653,12 +686,6 @@ impl Quadtree {
             if c != LEAF as usize {
                 self.nodes[i].v1 = (c..c + 4).map(|k| self.nodes[k].v1).sum();
             }
-        }
-    }
-
-    pub(crate) fn scale_bounds(&mut self, factor: f64) {
-        for n in &mut self.nodes {
-            n.bound *= factor;
         }
     }
 

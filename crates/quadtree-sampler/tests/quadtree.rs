@@ -6,7 +6,7 @@
 use brdf_core::quadrature::{GaussLegendre, directional_albedo};
 use brdf_core::{Brdf, DiskMap, geometry::luminance, registry};
 use glam::Vec3;
-use quadtree_sampler::{BuildConfig, BuildError, QuadtreeSampler, refleja};
+use quadtree_sampler::{BuildConfig, BuildError, PackedTree, Quadtree, QuadtreeSampler, refleja};
 use rand_core::SeedableRng;
 use rand_pcg::Pcg64;
 use std::f64::consts::PI;
@@ -145,7 +145,7 @@ fn serial_and_parallel_builds_are_bit_identical() {
         let b = model(name, params);
         let wi = dir(45.0, 10.0);
         for target in [None, Some(1.3)] {
-            let serial = QuadtreeSampler::new(
+            let serial = Quadtree::new(
                 &*b,
                 wi,
                 BuildConfig {
@@ -161,7 +161,7 @@ fn serial_and_parallel_builds_are_bit_identical() {
                     .build()
                     .unwrap();
                 let par = pool.install(|| {
-                    QuadtreeSampler::new(
+                    Quadtree::new(
                         &*b,
                         wi,
                         BuildConfig {
@@ -172,15 +172,105 @@ fn serial_and_parallel_builds_are_bit_identical() {
                     )
                     .unwrap()
                 });
-                assert_eq!(serial.tree().nodes().len(), par.tree().nodes().len());
-                for (a, c) in serial.tree().nodes().iter().zip(par.tree().nodes()) {
+                assert_eq!(serial.nodes().len(), par.nodes().len());
+                for (a, c) in serial.nodes().iter().zip(par.nodes()) {
                     assert_eq!(a.v1.to_bits(), c.v1.to_bits(), "{name}: {threads} threads");
                     assert_eq!(a.bound.to_bits(), c.bound.to_bits());
                     assert_eq!(a, c);
                 }
+                // So is the sampling layout packed from them.
+                assert_eq!(PackedTree::new(&serial), PackedTree::new(&par));
             }
         }
     }
+}
+
+#[test]
+fn packed_selection_matches_v1_and_reaches_every_live_leaf() {
+    for (name, params, theta) in [
+        ("phong", &["n=1000"][..], 45.0),
+        ("ward", &[][..], 80.0),
+        ("cook-torrance", &["m=0.1"][..], 30.0),
+        ("lambert", &[][..], 10.0),
+    ] {
+        let b = model(name, params);
+        let tree =
+            Quadtree::new(&*b, dir(theta, 10.0), BuildConfig::with_target_trials(1.3)).unwrap();
+        let packed = PackedTree::new(&tree);
+        assert_eq!(
+            packed.stats().bytes,
+            16 * tree.nodes().len(),
+            "{name}: 16 bytes a node"
+        );
+        let p = packed.selection_probabilities();
+        let volume = tree.volume();
+        let unpacked = packed.unpack();
+        let unit = 1.0 / f64::from(1u32 << 31);
+        // One unit of 2^-31 per leaf, plus one for every leaf under a unit that the minimum
+        // width may have pushed along (module doc of `packed`).
+        let tiny = tree
+            .leaves()
+            .filter(|(_, n)| n.v1 > 0.0 && n.v1 / volume < unit)
+            .count();
+        let mut distance = 0.0;
+        for (i, n) in tree.leaves() {
+            let want = n.v1 / volume;
+            distance += 0.5 * (p[i] - want).abs();
+            assert!(
+                (p[i] - want).abs() <= (1.0 + tiny as f64) * unit,
+                "{name}: leaf {i}: {} vs {want} ({tiny} tiny leaves)",
+                p[i]
+            );
+            assert_eq!(
+                p[i] > 0.0,
+                n.v1 > 0.0,
+                "{name}: leaf {i} reachable iff live"
+            );
+            // The unpacked node has the same square and depth, and a bound at least as large.
+            let u = unpacked.nodes()[i];
+            assert_eq!((u.x, u.y, u.size, u.depth), (n.x, n.y, n.size, n.depth));
+            assert!(u.bound >= n.bound && u.bound <= n.bound * (1.0 + 1e-6));
+            assert_eq!(u.proposal, n.proposal);
+        }
+        let leaves = tree.leaves().count() as f64;
+        assert!(
+            distance <= leaves * unit,
+            "{name}: total variation {distance}"
+        );
+        // The descent lands in the leaf holding the uniform, with that leaf's square: walk
+        // the leaves in interval order and select at both ends of each interval.
+        let mut start = 0.0;
+        let mut order: Vec<usize> = tree.leaves().map(|(i, _)| i).collect();
+        order.sort_by_key(|&i| leaf_path(&tree, i));
+        for i in order {
+            if p[i] > 0.0 {
+                for u in [start, start + p[i] - 1.0 / f64::from(1u32 << 31)] {
+                    let s = packed.select(u);
+                    assert_eq!(s.index, i, "{name}: u = {u}");
+                    assert_eq!(s.rect, tree.nodes()[i].rect());
+                }
+            }
+            start += p[i];
+        }
+        assert!((start - 1.0).abs() < 1e-12);
+    }
+}
+
+/// The child indices from the root down to node `i` (sorts leaves in selection order).
+fn leaf_path(tree: &Quadtree, i: usize) -> Vec<usize> {
+    let nodes = tree.nodes();
+    let mut path = Vec::new();
+    let mut j = 0;
+    while j != i {
+        let c = nodes[j].first_child as usize;
+        let p = tree.nodes()[i].rect().min;
+        let n = &nodes[j];
+        let k = usize::from(p.x >= f64::from(n.x) + 0.5 * f64::from(n.size))
+            + 2 * usize::from(p.y >= f64::from(n.y) + 0.5 * f64::from(n.size));
+        path.push(k);
+        j = c + k;
+    }
+    path
 }
 
 #[test]

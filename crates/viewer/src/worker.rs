@@ -317,7 +317,7 @@ pub fn process(req: &Request, live: &dyn Fn() -> bool, send: &dyn Fn(Update)) {
     };
     send(Update::Tree {
         generation: g,
-        tree: Arc::new(tree_sampler.tree().clone()),
+        tree: Arc::new(tree_sampler.tree().unpack()),
         stats: tree_sampler.stats(),
         seconds: t0.elapsed().as_secs_f64(),
         albedo: tree_sampler.albedo(),

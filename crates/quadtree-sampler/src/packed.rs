@@ -1,0 +1,424 @@
+//! The sampling layout of a quadtree: 16 bytes per node, one cache line holds four.
+//!
+//! The build's [`Quadtree`] keeps everything a node's evaluation found, in f64 (80 bytes a
+//! node). Sampling needs far less: at an inner node, which child to descend into; at a leaf,
+//! its bound M and which chart its proposal uses. Everything else follows from the path:
+//!
+//! - a node's square is implicit: the root is [−1,1]², child k of a square takes its
+//!   quadrant k ((−,−), (+,−), (−,+), (+,+)), computed exactly in f64 on the way down;
+//! - a leaf's proposal box is a pure function of its square and its chart
+//!   ([`Proposal::for_node`]), recomputed for the rim leaves (the only ones whose box is not
+//!   their square) after the descent, once per sample;
+//! - selection is an inverse-CDF lookup: the unit interval, in 2³¹ fixed-point units, is
+//!   cut into one interval per leaf, of width ∝ its v1, in tree order; an inner node stores
+//!   where its children 1, 2 and 3 start. One 31-bit uniform descends with three integer
+//!   comparisons per level and no arithmetic on it at all (the seed's `seleccionarRegion`,
+//!   which sums four v1 and rescales the uniform with a division at every level, is the same
+//!   distribution up to rounding).
+//!
+//! The cuts between leaves are their cumulative v1 shares rounded to whole units, with every
+//! leaf of v1 > 0 kept at least one unit wide (nothing the tree covers becomes unreachable)
+//! and every leaf of v1 = 0 none (never selected). A leaf's selection probability therefore
+//! differs from v1/V by at most one unit, 2⁻³¹ ≈ 4.7·10⁻¹⁰ (more only right after a run of
+//! leaves each holding less than a unit, which the minimum width pushes along): the total
+//! variation distance from the exact selection is about 2⁻³¹ per leaf, 10⁻⁶ for two thousand
+//! leaves, far under what any histogram test can see.
+
+use crate::chart::{Chart, Proposal, Rect};
+use crate::tree::{LEAF, Node, Quadtree, TreeStats, round_up_f32 as round_up};
+use alloc::vec::Vec;
+use brdf_core::DiskMap;
+
+/// Marks a packed node as a leaf (its low bits then say the chart).
+const LEAF_FLAG: u32 = 1 << 31;
+/// Fixed-point scale of the selection: probabilities are multiples of 1/`ONE`.
+const ONE: u32 = 1 << 31;
+
+/// One node of the sampling layout: 16 bytes.
+///
+/// Inner node: `link` is the index of the first of its four children (contiguous) and
+/// `data` holds where children 1, 2 and 3 start in the fixed-point unit interval
+/// (s₁ ≤ s₂ ≤ s₃ ≤ 2³¹; child 0 starts where its parent does, child 3 ends where it ends):
+/// a uniform x ∈ [0, 2³¹) in the node's interval goes to child
+/// k = [x ≥ s₁] + [x ≥ s₂] + [x ≥ s₃]. Leaf: `link` is `LEAF_FLAG` | chart, and
+/// `data` holds the bits of M (f32, rounded up, so it still bounds), of v1 (f32, for
+/// inspection only) and 0.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(C, align(16))]
+pub struct PackedNode {
+    link: u32,
+    data: [u32; 3],
+}
+
+impl PackedNode {
+    /// Whether the node is a leaf.
+    #[inline]
+    #[must_use]
+    pub fn is_leaf(&self) -> bool {
+        self.link & LEAF_FLAG != 0
+    }
+
+    /// A leaf's bound M (the height of its rejection box), or `None` for an inner node.
+    #[must_use]
+    pub fn bound(&self) -> Option<f32> {
+        self.is_leaf().then(|| f32::from_bits(self.data[0]))
+    }
+
+    /// A leaf's v1 (∫ f_r over its square), rounded to f32; `None` for an inner node.
+    #[must_use]
+    pub fn v1(&self) -> Option<f32> {
+        self.is_leaf().then(|| f32::from_bits(self.data[1]))
+    }
+
+    fn chart(&self) -> Chart {
+        match self.link & 3 {
+            0 => Chart::Square,
+            1 => Chart::Angle,
+            _ => Chart::Sine,
+        }
+    }
+}
+
+/// Which leaf a uniform selected, with its square (exact, from the descent).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Selected {
+    /// The leaf's index in [`PackedTree::nodes`] (the same index as in the build's arena).
+    pub index: usize,
+    /// The leaf's square.
+    pub rect: Rect,
+    /// Its depth (root = 0).
+    pub depth: u8,
+}
+
+/// A quadtree in its sampling layout (see the module doc): 16 bytes per node, the same node
+/// order as the [`Quadtree`] it was packed from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PackedTree {
+    nodes: Vec<PackedNode>,
+    map: DiskMap,
+    volume: f64,
+    stats: TreeStats,
+}
+
+/// Every inner node's child starts (see [`PackedNode`]). The leaves, in tree order (child 0
+/// first), cut [0, 2³¹) at their cumulative v1 share rounded to the nearest unit; each leaf
+/// with v1 > 0 is kept at least one unit wide (and none other gets any).
+fn child_starts(src: &[Node]) -> Vec<[u32; 3]> {
+    let n = src.len();
+    // Depth-first, child 0 first: the leaves of any subtree are contiguous; `first[i]` is
+    // where node i's leaves begin in that order.
+    let mut first = alloc::vec![0usize; n];
+    let mut leaves = Vec::new();
+    let mut stack = alloc::vec![0usize];
+    while let Some(i) = stack.pop() {
+        first[i] = leaves.len();
+        if src[i].is_leaf() {
+            leaves.push(i);
+        } else {
+            let c = src[i].first_child as usize;
+            stack.extend([c + 3, c + 2, c + 1, c]);
+        }
+    }
+    let live = |i: usize| src[i].v1 > 0.0;
+    let volume: f64 = leaves
+        .iter()
+        .filter(|&&i| live(i))
+        .map(|&i| src[i].v1)
+        .sum();
+    let one = u64::from(ONE);
+    // cut[j] = where leaf j starts; cut[len] = 2³¹.
+    let mut cut = alloc::vec![0u64; leaves.len() + 1];
+    let mut cum = 0.0;
+    for (j, &i) in leaves.iter().enumerate() {
+        if live(i) {
+            cum += src[i].v1;
+        }
+        let ideal = if volume > 0.0 {
+            ((cum / volume) * one as f64).round() as u64
+        } else {
+            0
+        };
+        let min = cut[j] + u64::from(live(i));
+        cut[j + 1] = if live(i) { ideal.max(min) } else { cut[j] };
+    }
+    // The last live leaf ends at 2³¹; pull back any cut the minimum widths pushed past it
+    // (possible only after more than 2³¹ tiny leaves, i.e. never, but kept exact).
+    let last = cut.len() - 1;
+    cut[last] = one;
+    for j in (1..last).rev() {
+        let need = u64::from(live(leaves[j]));
+        cut[j] = cut[j].min(cut[j + 1] - need.min(cut[j + 1]));
+    }
+    if let Some(j) = (0..leaves.len()).rev().find(|&j| live(leaves[j])) {
+        for c in &mut cut[j + 1..] {
+            *c = one;
+        }
+    } else {
+        // An empty tree: every cut at the end, so the descent takes child 0 (never sampled).
+        cut.iter_mut().for_each(|c| *c = one);
+    }
+    let to_u32 = |c: u64| u32::try_from(c.min(one)).unwrap_or(ONE);
+    (0..n)
+        .map(|i| {
+            if src[i].is_leaf() {
+                [ONE; 3]
+            } else {
+                let c = src[i].first_child as usize;
+                [1, 2, 3].map(|k| to_u32(cut[first[c + k]]))
+            }
+        })
+        .collect()
+}
+
+impl PackedTree {
+    /// Packs a built tree (same node order).
+    #[must_use]
+    pub fn new(tree: &Quadtree) -> Self {
+        let src = tree.nodes();
+        let starts = child_starts(src);
+        let nodes = src
+            .iter()
+            .zip(starts)
+            .map(|(n, starts)| {
+                if n.is_leaf() {
+                    let chart = match n.proposal.chart {
+                        Chart::Square => 0,
+                        Chart::Angle => 1,
+                        Chart::Sine => 2,
+                    };
+                    PackedNode {
+                        link: LEAF_FLAG | chart,
+                        data: [round_up(n.bound).to_bits(), (n.v1 as f32).to_bits(), 0],
+                    }
+                } else {
+                    PackedNode {
+                        link: n.first_child,
+                        data: starts,
+                    }
+                }
+            })
+            .collect::<Vec<_>>();
+        let mut packed = Self {
+            nodes,
+            map: tree.map(),
+            volume: tree.volume(),
+            stats: tree.stats(),
+        };
+        packed.restat();
+        packed
+    }
+
+    /// E\[T\] and bytes as sampled: with the f32 bounds and the packed size.
+    fn restat(&mut self) {
+        let (mut boxes, mut v1s) = (0.0, 0.0);
+        for n in self.unpacked_nodes() {
+            if n.is_leaf() && n.v1 > 0.0 {
+                boxes += n.box_volume();
+                v1s += n.v1;
+            }
+        }
+        self.stats.expected_trials = if v1s > 0.0 { boxes / v1s } else { 0.0 };
+        self.stats.bytes = self.nodes.len() * core::mem::size_of::<PackedNode>();
+    }
+
+    /// The nodes, root first.
+    #[must_use]
+    pub fn nodes(&self) -> &[PackedNode] {
+        &self.nodes
+    }
+
+    /// The map the tree was built over.
+    #[must_use]
+    pub fn map(&self) -> DiskMap {
+        self.map
+    }
+
+    /// V = ∫ f_r over the square (f64, from the build).
+    #[must_use]
+    pub fn volume(&self) -> f64 {
+        self.volume
+    }
+
+    /// Counts, E\[T\] of the packed bounds, and the packed size in bytes.
+    #[must_use]
+    pub fn stats(&self) -> &TreeStats {
+        &self.stats
+    }
+
+    /// `seleccionarRegion`: the leaf whose interval holds the uniform `u` ∈ [0, 1) (taken
+    /// to 31 bits). Never returns a leaf with v1 = 0 unless the whole tree is empty.
+    #[inline]
+    #[must_use]
+    pub fn select(&self, u: f64) -> Selected {
+        self.select_fixed((u.clamp(0.0, 1.0) * f64::from(ONE)).min(f64::from(ONE - 1)) as u32)
+    }
+
+    /// [`PackedTree::select`] from a 31-bit uniform integer `x` ∈ [0, 2³¹) (higher bits are
+    /// ignored).
+    #[inline]
+    #[must_use]
+    pub fn select_fixed(&self, x: u32) -> Selected {
+        let x = x & (ONE - 1);
+        let (mut i, mut depth) = (0usize, 0u8);
+        let (mut min_x, mut min_y, mut size) = (-1.0f64, -1.0f64, 2.0f64);
+        loop {
+            let n = self.nodes[i];
+            if n.is_leaf() {
+                return Selected {
+                    index: i,
+                    rect: Rect::square(min_x, min_y, size),
+                    depth,
+                };
+            }
+            let k = usize::from(x >= n.data[0])
+                + usize::from(x >= n.data[1])
+                + usize::from(x >= n.data[2]);
+            size *= 0.5;
+            min_x += size * (k & 1) as f64;
+            min_y += size * (k >> 1) as f64;
+            depth += 1;
+            i = n.link as usize + k;
+        }
+    }
+
+    /// Each node's probability of being passed through by [`PackedTree::select`] (for a
+    /// leaf: of being selected), exactly as the fixed-point intervals give it.
+    #[must_use]
+    pub fn selection_probabilities(&self) -> Vec<f64> {
+        let n = self.nodes.len();
+        let (mut start, mut end) = (alloc::vec![0u32; n], alloc::vec![ONE; n]);
+        for i in 0..n {
+            let node = self.nodes[i];
+            if node.is_leaf() {
+                continue;
+            }
+            let c = node.link as usize;
+            let cuts = [start[i], node.data[0], node.data[1], node.data[2], end[i]];
+            for k in 0..4 {
+                start[c + k] = cuts[k];
+                end[c + k] = cuts[k + 1];
+            }
+        }
+        (0..n)
+            .map(|i| f64::from(end[i] - start[i]) / f64::from(ONE))
+            .collect()
+    }
+
+    /// A selected leaf's rejection proposal and bound M (0 for a leaf that holds nothing).
+    #[inline]
+    #[must_use]
+    pub fn proposal(&self, leaf: &Selected) -> (Proposal, f64) {
+        let n = self.nodes[leaf.index];
+        let chart = n.chart();
+        let prop = if chart == Chart::Square {
+            Proposal {
+                chart,
+                lo: leaf.rect.min,
+                hi: leaf.rect.max,
+            }
+        } else {
+            Proposal::for_node(self.map, &leaf.rect)
+        };
+        let live = f32::from_bits(n.data[1]) > 0.0;
+        (
+            prop,
+            if live {
+                f64::from(f32::from_bits(n.data[0]))
+            } else {
+                0.0
+            },
+        )
+    }
+
+    /// The tree as [`Node`]s again, for inspection (the viewer, exports): squares and depths
+    /// exact, bounds as sampled (f32), v1 from the f32 leaf values summed upward.
+    #[must_use]
+    pub fn unpacked_nodes(&self) -> Vec<Node> {
+        let mut out = alloc::vec![
+            Node {
+                x: -1.0,
+                y: -1.0,
+                size: 2.0,
+                depth: 0,
+                first_child: LEAF,
+                v1: 0.0,
+                bound: 0.0,
+                proposal: Proposal {
+                    chart: Chart::Square,
+                    lo: glam::DVec2::splat(-1.0),
+                    hi: glam::DVec2::splat(1.0),
+                },
+            };
+            self.nodes.len()
+        ];
+        // Parents precede children: squares and depths flow down in index order.
+        for i in 0..self.nodes.len() {
+            let n = self.nodes[i];
+            let rect = out[i].rect();
+            if n.is_leaf() {
+                let sel = Selected {
+                    index: i,
+                    rect,
+                    depth: out[i].depth,
+                };
+                let (prop, _) = self.proposal(&sel);
+                out[i].proposal = prop;
+                out[i].bound = f64::from(f32::from_bits(n.data[0]));
+                out[i].v1 = f64::from(f32::from_bits(n.data[1]));
+            } else {
+                let c = n.link as usize;
+                out[i].first_child = n.link;
+                let (x, y, h) = (out[i].x, out[i].y, 0.5 * out[i].size);
+                for k in 0..4 {
+                    out[c + k].x = x + if k & 1 == 1 { h } else { 0.0 };
+                    out[c + k].y = y + if k >> 1 == 1 { h } else { 0.0 };
+                    out[c + k].size = h;
+                    out[c + k].depth = out[i].depth + 1;
+                }
+            }
+        }
+        for i in (0..out.len()).rev() {
+            let c = out[i].first_child as usize;
+            if c != LEAF as usize {
+                out[i].v1 = (c..c + 4).map(|k| out[k].v1).sum();
+            }
+        }
+        out
+    }
+
+    /// The tree as a [`Quadtree`] again, for inspection (see
+    /// [`PackedTree::unpacked_nodes`]).
+    #[must_use]
+    pub fn unpack(&self) -> Quadtree {
+        Quadtree::from_parts(self.unpacked_nodes(), self.map, self.stats.budget_exhausted)
+    }
+
+    /// Multiplies every leaf bound by `factor` (negative controls only).
+    pub(crate) fn scale_bounds(&mut self, factor: f64) {
+        for n in &mut self.nodes {
+            if n.is_leaf() {
+                let m = f64::from(f32::from_bits(n.data[0])) * factor;
+                n.data[0] = (m as f32).to_bits();
+            }
+        }
+        self.restat();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_packed_node_is_16_bytes() {
+        assert_eq!(core::mem::size_of::<PackedNode>(), 16);
+    }
+
+    #[test]
+    fn bounds_round_up() {
+        for m in [1.0, 0.1, 1e-30, 3.0e9, 123.456_789_012_345] {
+            assert!(f64::from(round_up(m)) >= m);
+            assert!(f64::from(round_up(m)) <= m * (1.0 + 2.0 * f64::from(f32::EPSILON)));
+        }
+    }
+}
