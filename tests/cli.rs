@@ -510,11 +510,17 @@ fn bench_reports_ratios_from_unbiased_estimates() {
     for key in ["expected_trials", "bytes_per_node", "rayon_speedup"] {
         assert!(set[key].as_f64().unwrap() > 0.0, "{key}: {set}");
     }
+    // The sampling layout: 16 bytes a node.
+    assert_eq!(set["bytes_per_node"].as_f64(), Some(16.0));
+    assert!(v["beckmann_analytic_ns_per_sample"].as_f64().unwrap() > 0.0);
     for key in [
         "time_quadtree_over_analytic",
         "efficiency_quadtree_over_cosine",
         "efficiency_quadtree_over_analytic",
         "efficiency_quadtree_over_table",
+        "time_quadtree_over_beckmann",
+        "time_target_over_analytic",
+        "time_target_over_beckmann",
     ] {
         let r = set["ratios"][key].as_f64().unwrap();
         assert!(r.is_finite() && r > 0.0, "{key}: {r}");

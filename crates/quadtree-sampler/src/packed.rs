@@ -294,10 +294,8 @@ impl PackedTree {
             }
             let c = node.link as usize;
             let cuts = [start[i], node.data[0], node.data[1], node.data[2], end[i]];
-            for k in 0..4 {
-                start[c + k] = cuts[k];
-                end[c + k] = cuts[k + 1];
-            }
+            start[c..c + 4].copy_from_slice(&cuts[..4]);
+            end[c..c + 4].copy_from_slice(&cuts[1..]);
         }
         (0..n)
             .map(|i| f64::from(end[i] - start[i]) / f64::from(ONE))

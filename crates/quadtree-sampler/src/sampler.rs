@@ -188,7 +188,8 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
         rng: &mut R,
     ) -> Option<(ChartPoint, Vec3, Vec3, u32)> {
         let (prop, m) = self.tree.proposal(leaf);
-        if !(m > 0.0) {
+        // M is 0 for a leaf that holds nothing (selected only when the whole tree is empty).
+        if m <= 0.0 || m.is_nan() {
             return None;
         }
         let span = prop.hi - prop.lo;
