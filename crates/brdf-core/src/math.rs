@@ -41,4 +41,5 @@ backend! {
     atan2(y, x): f64 => atan2, atan2;
     floor(x): f64 => floor, floor;
     ceil(x): f64 => ceil, ceil;
+    round(x): f64 => round, round;
 }

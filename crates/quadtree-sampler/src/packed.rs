@@ -134,7 +134,7 @@ fn child_starts(src: &[Node]) -> Vec<[u32; 3]> {
             cum += src[i].v1;
         }
         let ideal = if volume > 0.0 {
-            ((cum / volume) * one as f64).round() as u64
+            brdf_core::math::round((cum / volume) * one as f64) as u64
         } else {
             0
         };
