@@ -31,6 +31,9 @@ use brdf_core::DiskMap;
 
 /// Marks a packed node as a leaf (its low bits then say the chart).
 const LEAF_FLAG: u32 = 1 << 31;
+/// Marks a leaf with v1 > 0 (in f64, as the build found it: a v1 under f32's smallest
+/// subnormal still counts, since the selection gives such a leaf its unit).
+const LIVE_FLAG: u32 = 1 << 30;
 /// Fixed-point scale of the selection: probabilities are multiples of 1/`ONE`.
 const ONE: u32 = 1 << 31;
 
@@ -40,9 +43,9 @@ const ONE: u32 = 1 << 31;
 /// `data` holds where children 1, 2 and 3 start in the fixed-point unit interval
 /// (s₁ ≤ s₂ ≤ s₃ ≤ 2³¹; child 0 starts where its parent does, child 3 ends where it ends):
 /// a uniform x ∈ [0, 2³¹) in the node's interval goes to child
-/// k = [x ≥ s₁] + [x ≥ s₂] + [x ≥ s₃]. Leaf: `link` is `LEAF_FLAG` | chart, and
-/// `data` holds the bits of M (f32, rounded up, so it still bounds), of v1 (f32, for
-/// inspection only) and 0.
+/// k = [x ≥ s₁] + [x ≥ s₂] + [x ≥ s₃]. Leaf: `link` is `LEAF_FLAG` | `LIVE_FLAG` when
+/// v1 > 0 | chart, and `data` holds the bits of M (f32, rounded up, so it still bounds), of
+/// v1 (f32, for inspection only) and 0.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(C, align(16))]
 pub struct PackedNode {
@@ -56,6 +59,14 @@ impl PackedNode {
     #[must_use]
     pub fn is_leaf(&self) -> bool {
         self.link & LEAF_FLAG != 0
+    }
+
+    /// Whether the node is a leaf holding part of the volume (v1 > 0): the leaves selection
+    /// can reach (all of them are when the tree is empty, and none is live).
+    #[inline]
+    #[must_use]
+    pub fn is_live_leaf(&self) -> bool {
+        self.link & (LEAF_FLAG | LIVE_FLAG) == LEAF_FLAG | LIVE_FLAG
     }
 
     /// A leaf's bound M (the height of its rejection box), or `None` for an inner node.
@@ -186,8 +197,9 @@ impl PackedTree {
                         Chart::Angle => 1,
                         Chart::Sine => 2,
                     };
+                    let live = if n.v1 > 0.0 { LIVE_FLAG } else { 0 };
                     PackedNode {
-                        link: LEAF_FLAG | chart,
+                        link: LEAF_FLAG | live | chart,
                         data: [round_up(n.bound).to_bits(), (n.v1 as f32).to_bits(), 0],
                     }
                 } else {
@@ -211,8 +223,8 @@ impl PackedTree {
     /// E\[T\] and bytes as sampled: with the f32 bounds and the packed size.
     fn restat(&mut self) {
         let (mut boxes, mut v1s) = (0.0, 0.0);
-        for n in self.unpacked_nodes() {
-            if n.is_leaf() && n.v1 > 0.0 {
+        for (p, n) in self.nodes.iter().zip(self.unpacked_nodes()) {
+            if p.is_live_leaf() {
                 boxes += n.box_volume();
                 v1s += n.v1;
             }
@@ -317,10 +329,9 @@ impl PackedTree {
         } else {
             Proposal::for_node(self.map, &leaf.rect)
         };
-        let live = f32::from_bits(n.data[1]) > 0.0;
         (
             prop,
-            if live {
+            if n.is_live_leaf() {
                 f64::from(f32::from_bits(n.data[0]))
             } else {
                 0.0

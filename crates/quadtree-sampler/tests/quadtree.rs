@@ -192,6 +192,8 @@ fn packed_selection_matches_v1_and_reaches_every_live_leaf() {
         ("ward", &[][..], 80.0),
         ("cook-torrance", &["m=0.1"][..], 30.0),
         ("lambert", &[][..], 10.0),
+        // Grazing: leaves whose v1 is positive in f64 but under f32's smallest subnormal.
+        ("phong", &["n=1000", "kd=0"][..], 89.0),
     ] {
         let b = model(name, params);
         let tree =
@@ -248,6 +250,11 @@ fn packed_selection_matches_v1_and_reaches_every_live_leaf() {
                     let s = packed.select(u);
                     assert_eq!(s.index, i, "{name}: u = {u}");
                     assert_eq!(s.rect, tree.nodes()[i].rect());
+                    // A reachable leaf is sampled: its bound is the build's, never 0.
+                    assert!(
+                        packed.proposal(&s).1 >= tree.nodes()[i].bound,
+                        "{name}: leaf {i}"
+                    );
                 }
             }
             start += p[i];
