@@ -92,7 +92,7 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
     /// non-zero and above the horizon). Delta models are an error.
     pub fn new(brdf: &'a B, wi: Vec3, config: BuildConfig) -> Result<Self, BuildError> {
         let wi = unit_direction_above(wi)?;
-        let tree = PackedTree::new(&Quadtree::new(brdf, wi, config)?);
+        let tree = PackedTree::new(&Quadtree::from_unit(brdf, wi, config)?);
         let v = tree.volume();
         let j = f64::from(config.map.square_area_per_projected_solid_angle());
         Ok(Self {
@@ -157,8 +157,8 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
     }
 
     /// `seleccionarRegion`: descends from the root, choosing child i with probability
-    /// v1_i / Σ v1 (stored in 31-bit fixed point, see [`PackedTree`]), reusing one uniform
-    /// `u` ∈ [0, 1) by rescaling. Returns a leaf with v1 > 0 (or a leaf holding nothing when
+    /// v1_i / Σ v1 (stored in 31-bit fixed point, see [`PackedTree`]): one uniform
+    /// `u` ∈ [0, 1) picks the leaf whose interval holds it. Returns a leaf with v1 > 0 (or a leaf holding nothing when
     /// the whole tree is empty) and its square.
     #[must_use]
     pub fn select_region(&self, u: f64) -> Selected {

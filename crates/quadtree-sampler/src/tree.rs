@@ -140,7 +140,7 @@ struct Evaluation {
 }
 
 /// Everything a node evaluation needs: pure, shared by the worker threads.
-pub(crate) struct Context<'a, B: Brdf + ?Sized> {
+struct Context<'a, B: Brdf + ?Sized> {
     pub brdf: &'a B,
     pub wi: Vec3,
     pub config: BuildConfig,
@@ -156,7 +156,7 @@ pub(crate) struct Context<'a, B: Brdf + ?Sized> {
 impl<'a, B: Brdf + ?Sized> Context<'a, B> {
     /// The context, and the root's integration cells (the estimate of the total volume is an
     /// adaptive integration of the root, which the root's own evaluation then continues).
-    pub(crate) fn new(brdf: &'a B, wi: Vec3, config: BuildConfig) -> (Self, Cell) {
+    fn new(brdf: &'a B, wi: Vec3, config: BuildConfig) -> (Self, Cell) {
         let rule = match config.rule {
             IntegrationRule::Midpoint { n } => UnitRule::midpoint(usize::from(n)),
             IntegrationRule::GaussLegendre { n } => UnitRule::new(usize::from(n)),
@@ -481,7 +481,17 @@ impl Quadtree {
         wi: Vec3,
         config: BuildConfig,
     ) -> Result<Self, BuildError> {
-        let wi = brdf_core::geometry::unit_direction_above(wi)?;
+        Self::from_unit(brdf, brdf_core::geometry::unit_direction_above(wi)?, config)
+    }
+
+    /// [`Quadtree::new`] for a `wi` its caller already checked and normalised (normalising
+    /// twice may move its last bit, and the tree must be built for the very `wi` the caller
+    /// keeps).
+    pub(crate) fn from_unit<B: Brdf + ?Sized>(
+        brdf: &B,
+        wi: Vec3,
+        config: BuildConfig,
+    ) -> Result<Self, BuildError> {
         let (ctx, cells) = Context::new(brdf, wi, config);
         Self::build(&ctx, cells)
     }
@@ -498,10 +508,7 @@ impl Quadtree {
     /// Builds the tree of f_r(wi, ·) (`wi` local, above the horizon), splitting every node
     /// whose P is below the threshold (`particionar`), then, in target mode, refining the
     /// leaves with the largest wasted volume until E\[T\] ≤ target.
-    pub(crate) fn build<B: Brdf + ?Sized>(
-        ctx: &Context<'_, B>,
-        root_cells: Cell,
-    ) -> Result<Self, BuildError> {
+    fn build<B: Brdf + ?Sized>(ctx: &Context<'_, B>, root_cells: Cell) -> Result<Self, BuildError> {
         ctx.config.validate()?;
         if ctx.brdf.is_delta() {
             return Err(BuildError::DeltaModel {

@@ -13,7 +13,7 @@
 use crate::config::BuildConfig;
 use crate::error::BuildError;
 use crate::sampler::{DirectionSampler, Sample, uniform_f64};
-use crate::tree::{Context, Quadtree, TreeStats, albedo_of_volume};
+use crate::tree::{Quadtree, TreeStats, albedo_of_volume};
 use alloc::vec::Vec;
 use brdf_core::geometry::{above_horizon, unit_direction_above};
 use brdf_core::{Brdf, DiskMap};
@@ -49,8 +49,7 @@ impl<'a, B: Brdf + ?Sized> WarpSampler<'a, B> {
             map: DiskMap::Concentric,
             ..config
         };
-        let (ctx, cells) = Context::new(brdf, wi, config);
-        let tree = Quadtree::build(&ctx, cells)?;
+        let tree = Quadtree::from_unit(brdf, wi, config)?;
         let volume = tree.volume();
         // A tree with no volume (f ≡ 0) is warped by the uniform component alone.
         let mix = if volume > 0.0 { mix } else { 1.0 };
