@@ -796,6 +796,44 @@ mod tests {
         assert!((got - want).abs() < 1e-6 * want, "{got} vs {want}");
     }
 
+    /// The build's memoised integration is the plain one, bit for bit: from a fresh cell,
+    /// again over the cells it kept (serial or parallel), and in each quadrant continuing
+    /// from the parent's cells with the child's own tolerance (what a split hands down).
+    #[test]
+    fn memoised_integration_is_the_plain_one_bit_for_bit() {
+        let rule = UnitRule::new(6);
+        // A sharp lobe off the centre, which refinement follows deep into one corner, on a
+        // flat floor, whose ties in f test that peaks merge in visiting order (first wins).
+        let c = DVec3::new(0.5, -0.3, 0.812_403_840_463_596).normalize();
+        let f = |w: DVec3| m::pow(w.dot(c).max(0.0), 3000.0).max(0.05);
+        let root = Rect::square(-1.0, -1.0, 2.0);
+        for map in [DiskMap::Orthographic, DiskMap::Concentric] {
+            let (tol, depth) = (1e-7, 12);
+            let mut want_peak = Peak::default();
+            let want = integrate_adaptive_peak(map, &root, &rule, tol, depth, &f, &mut want_peak);
+            let mut cell = Cell::once(map, &root, &rule, &f);
+            for par_levels in [0, u32::MAX, 0] {
+                let mut peak = cell.peak;
+                let got = refine_cells(
+                    map, &root, &mut cell, &rule, tol, depth, &f, &mut peak, par_levels,
+                );
+                assert_eq!(got.to_bits(), want.to_bits(), "{map:?} par {par_levels}");
+                assert_eq!(peak, want_peak, "{map:?} par {par_levels}");
+            }
+            let quads = root.quadrants();
+            for (q, sub) in quads.iter().zip(cell.into_quads()) {
+                let mut sub = sub.expect("the root's refinement computed its quadrants");
+                let tol = 1e-3 * sub.value.abs();
+                let mut want_peak = Peak::default();
+                let want = integrate_adaptive_peak(map, q, &rule, tol, depth, &f, &mut want_peak);
+                let mut peak = sub.peak;
+                let got = refine_cells(map, q, &mut sub, &rule, tol, depth, &f, &mut peak, 1);
+                assert_eq!(got.to_bits(), want.to_bits(), "{map:?} {q:?}");
+                assert_eq!(peak, want_peak, "{map:?} {q:?}");
+            }
+        }
+    }
+
     #[test]
     fn proposals_round_trip() {
         for map in [DiskMap::Orthographic, DiskMap::Concentric] {
