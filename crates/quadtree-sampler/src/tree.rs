@@ -543,8 +543,12 @@ impl Quadtree {
             let mut split = Vec::new();
             for &i in &frontier {
                 let n = &tree.nodes[i as usize];
+                // v1 = 0 with M > 0: the bound search met f > 0 where every integration
+                // point saw 0 (a lobe narrower than the rule's spacing, at grazing incidence
+                // the whole of f_r): the node is not empty, its integration is too coarse.
+                // Split it, and let its children's finer rules find the mass.
                 let wants = n.depth < cfg.max_depth
-                    && n.v1 > 0.0
+                    && (n.v1 > 0.0 || n.bound > 0.0)
                     && n.acceptance() < cfg.split_threshold
                     && n.reducible_waste(cfg.bound_safety) > cfg.min_relative_waste * total;
                 if wants {

@@ -135,6 +135,72 @@ fn builds_terminate_at_grazing_incidence() {
     }
 }
 
+/// A lobe narrower than the spacing of the root's integration points (sharp lobes at grazing
+/// incidence, squeezed against the rim) must still be found: the root's rule sees f = 0 at
+/// every point, but its bound search does not. These builds used to stop at an empty root
+/// (albedo 0, every sample failing). Oracle: the validation's adaptive cell integration.
+#[test]
+fn a_lobe_between_the_roots_integration_points_is_found() {
+    use quadtree_sampler::validate::{CellGrid, Validation};
+    for (name, params, theta, map) in [
+        (
+            "ward",
+            &["alpha_x=0.01", "alpha_y=0.01", "kd=0"][..],
+            89.0,
+            DiskMap::Orthographic,
+        ),
+        (
+            "ward",
+            &["alpha_x=0.01", "alpha_y=0.01", "kd=0"][..],
+            80.0,
+            DiskMap::Concentric,
+        ),
+        (
+            "cook-torrance",
+            &["m=0.02", "kd=0"][..],
+            89.0,
+            DiskMap::Concentric,
+        ),
+        (
+            "blinn-phong",
+            &["n=10000", "kd=0"][..],
+            89.0,
+            DiskMap::Concentric,
+        ),
+    ] {
+        let b = model(name, params);
+        let wi = dir(theta, 30.0);
+        let v = Validation::new(&*b, wi, CellGrid::Square { res: 25 }, 1e-7).unwrap();
+        let want: f64 = v.mass().iter().sum();
+        let s = QuadtreeSampler::new(
+            &*b,
+            wi,
+            BuildConfig {
+                map,
+                ..BuildConfig::default()
+            },
+        )
+        .unwrap();
+        let got = s.albedo();
+        assert!(
+            (got - want).abs() <= 1e-5 * want,
+            "{name} {theta}° {map:?}: tree albedo {got} vs cells {want}"
+        );
+        let st = s.stats();
+        assert!(
+            !st.budget_exhausted && st.expected_trials <= 2.0,
+            "{name}: {st:?}"
+        );
+        let mut rng = Pcg64::seed_from_u64(7);
+        let drawn = (0..20_000).filter(|_| s.sample(&mut rng).is_some()).count();
+        assert_eq!(
+            drawn, 20_000,
+            "{name} {theta}° {map:?}: every sample succeeds"
+        );
+        assert_eq!(s.bound_violations(), 0, "{name} {theta}° {map:?}");
+    }
+}
+
 #[test]
 fn serial_and_parallel_builds_are_bit_identical() {
     for &(name, params) in &[
