@@ -40,6 +40,7 @@ use brdf_core::geometry::{luminance, unit_direction_above};
 use brdf_core::math as m;
 use brdf_core::special::ln_gamma;
 use core::f64::consts::PI;
+use glam::DVec3;
 use glam::Vec3;
 use rand_core::Rng;
 
@@ -139,8 +140,23 @@ impl CellGrid {
     /// nested adaptive Gauss–Kronrod (7–15) to about `tol` absolute, in coordinates where the
     /// rim is a boundary and integrands that grow like 1/√cos θ there (Ward) stay bounded:
     /// polar cells in (v = √z, φ), dA = 2v³ dv dφ; square cells in the angle chart x = sin s,
-    /// y = cos s · sin t (z = cos s · cos t), dA = cos²s · cos t ds dt.
-    fn integrate(&self, i: usize, tol: f64, g: &(impl Fn(Vec3) -> f64 + ?Sized)) -> f64 {
+    /// y = cos s · sin t (z = cos s · cos t), dA = cos²s · cos t ds dt. Each range is first
+    /// cut at the coordinates of the `hints` (directions where g may peak; see [`adaptive`]).
+    fn integrate(
+        &self,
+        i: usize,
+        tol: f64,
+        hints: &[DVec3],
+        g: &(impl Fn(Vec3) -> f64 + ?Sized),
+    ) -> f64 {
+        // One coordinate of every hint (at most MAX_BREAKS, as `adaptive` uses).
+        let coords = |c: &dyn Fn(DVec3) -> f64| {
+            let mut out = [f64::NAN; MAX_BREAKS];
+            for (o, &h) in out.iter_mut().zip(hints) {
+                *o = c(h);
+            }
+            out
+        };
         match *self {
             Self::Polar { rings, sectors } => {
                 let (ri, sj) = (i / sectors, i % sectors);
@@ -151,6 +167,11 @@ impl CellGrid {
                 let p0 = 2.0 * PI * sj as f64 / sectors as f64;
                 let p1 = 2.0 * PI * (sj + 1) as f64 / sectors as f64;
                 let inner_tol = 0.1 * tol / (v1 - v0).max(1e-300);
+                let v_breaks = coords(&|h| m::sqrt(h.z));
+                let phi_breaks = coords(&|h| {
+                    let phi = m::atan2(h.y, h.x);
+                    if phi < 0.0 { phi + 2.0 * PI } else { phi }
+                });
                 adaptive(
                     &|v: f64| {
                         let z = v * v;
@@ -164,12 +185,14 @@ impl CellGrid {
                                 },
                                 p0,
                                 p1,
+                                &phi_breaks,
                                 inner_tol,
                                 MAX_PIECES,
                             )
                     },
                     v0,
                     v1,
+                    &v_breaks,
                     tol,
                     MAX_PIECES,
                 )
@@ -181,6 +204,7 @@ impl CellGrid {
                 let (y0, y1) = (-1.0 + h * iy as f64, -1.0 + h * (iy + 1) as f64);
                 let (s0, s1) = (m::asin(x0.max(-1.0)), m::asin(x1.min(1.0)));
                 let inner_tol = 0.1 * tol / (s1 - s0).max(1e-300);
+                let s_breaks = coords(&|h| m::asin(h.x.clamp(-1.0, 1.0)));
                 adaptive(
                     &|s: f64| {
                         let c = m::cos(s);
@@ -193,6 +217,8 @@ impl CellGrid {
                             m::asin((b / c).clamp(-1.0, 1.0)),
                         );
                         let x = m::sin(s);
+                        // Where each hint's y falls on this line of constant x.
+                        let t_breaks = coords(&|h| m::asin((h.y / c).clamp(-1.0, 1.0)));
                         c * c
                             * adaptive(
                                 &|t: f64| {
@@ -202,12 +228,14 @@ impl CellGrid {
                                 },
                                 t0,
                                 t1,
+                                &t_breaks,
                                 inner_tol,
                                 MAX_PIECES,
                             )
                     },
                     s0,
                     s1,
+                    &s_breaks,
                     tol,
                     MAX_PIECES,
                 )
@@ -217,24 +245,34 @@ impl CellGrid {
 
     /// ∫ g dA over every cell, in parallel with the `rayon` feature (each cell independent,
     /// collected in order: the result does not depend on the thread count).
-    fn integrate_all(&self, tol: f64, g: &(impl Fn(Vec3) -> f64 + Sync + ?Sized)) -> Vec<f64> {
+    fn integrate_all(
+        &self,
+        tol: f64,
+        hints: &[DVec3],
+        g: &(impl Fn(Vec3) -> f64 + Sync + ?Sized),
+    ) -> Vec<f64> {
         #[cfg(feature = "rayon")]
         {
             use rayon::prelude::*;
             (0..self.len())
                 .into_par_iter()
-                .map(|i| self.integrate(i, tol, g))
+                .map(|i| self.integrate(i, tol, hints, g))
                 .collect()
         }
         #[cfg(not(feature = "rayon"))]
         {
-            (0..self.len()).map(|i| self.integrate(i, tol, g)).collect()
+            (0..self.len())
+                .map(|i| self.integrate(i, tol, hints, g))
+                .collect()
         }
     }
 }
 
 /// Most intervals one adaptive integration may split its range into.
 const MAX_PIECES: usize = 200;
+/// Most break points one adaptive integration starts from (a model gives at most four peak
+/// hints).
+const MAX_BREAKS: usize = 4;
 
 /// Gauss–Kronrod 7–15 nodes on [0, 1] (QUADPACK's qk15), largest first; the last is 0.
 const XGK: [f64; 8] = [
@@ -287,7 +325,20 @@ fn gk15(f: &(impl Fn(f64) -> f64 + ?Sized), a: f64, b: f64) -> (f64, f64) {
 /// exist. Unlike halving the tolerance per level, this spends evaluations only where the
 /// error is: a kink or a jump costs one chain of bisections, not a full-depth tree, and the
 /// limit bounds the work on integrands that never meet the tolerance.
-fn adaptive(f: &(impl Fn(f64) -> f64 + ?Sized), a: f64, b: f64, tol: f64, limit: usize) -> f64 {
+///
+/// `breaks` (at most [`MAX_BREAKS`] are used): points where f may peak (a model's peak
+/// hints). The range is first cut at those inside it, QUADPACK's QAGP: a lobe narrower than
+/// the spacing of the 15 nodes then sits at the end of a piece, beside its outermost node,
+/// instead of between two nodes, where every node sees 0, the error estimate is 0 and the
+/// lobe is lost. Without a break inside (a, b) this is plain QAG, bit for bit.
+fn adaptive(
+    f: &(impl Fn(f64) -> f64 + ?Sized),
+    a: f64,
+    b: f64,
+    breaks: &[f64],
+    tol: f64,
+    limit: usize,
+) -> f64 {
     /// An interval with its estimate and error, ordered by error (ties by position, so the
     /// order of bisection is fully determined by the integrand).
     struct Piece {
@@ -314,14 +365,34 @@ fn adaptive(f: &(impl Fn(f64) -> f64 + ?Sized), a: f64, b: f64, tol: f64, limit:
                 .then(other.a.total_cmp(&self.a))
         }
     }
-    let (value, err) = gk15(f, a, b);
-    if err <= tol || !err.is_finite() {
-        return value;
+    // The ends of the first pieces: a, the breaks inside (a, b) in order, b.
+    let mut ends = [a; MAX_BREAKS + 2];
+    let mut n = 1;
+    for &x in breaks.iter().take(MAX_BREAKS) {
+        if x > a && x < b {
+            ends[n] = x;
+            n += 1;
+        }
     }
+    ends[1..n].sort_unstable_by(f64::total_cmp);
+    ends[n] = b;
+    n += 1;
     let mut heap = alloc::collections::BinaryHeap::with_capacity(limit.min(1024));
-    heap.push(Piece { a, b, value, err });
-    let mut total_err = err;
-    while total_err > tol && heap.len() < limit {
+    let (mut total_err, mut finite) = (0.0, true);
+    for w in ends[..n].windows(2) {
+        if w[1] > w[0] {
+            let (value, err) = gk15(f, w[0], w[1]);
+            finite &= err.is_finite();
+            total_err += err;
+            heap.push(Piece {
+                a: w[0],
+                b: w[1],
+                value,
+                err,
+            });
+        }
+    }
+    while finite && total_err > tol && heap.len() < limit {
         let Some(p) = heap.pop() else { break };
         let c = 0.5 * (p.a + p.b);
         if !(c > p.a && c < p.b) {
@@ -592,6 +663,8 @@ pub struct Validation<'a, B: Brdf + ?Sized> {
     wi: Vec3,
     grid: CellGrid,
     tol: f64,
+    /// The model's peak hints for `wi`, where every cell's integration cuts its ranges.
+    hints: Vec<DVec3>,
     /// ∫ Y(f_r) dA per cell (the seed's I_i, unnormalised).
     mass: Vec<f64>,
 }
@@ -612,21 +685,30 @@ impl<'a, B: Brdf + ?Sized> Validation<'a, B> {
             });
         }
         let f = |w: Vec3| f64::from(brdf.eval_luminance(wi, w));
+        // The model's own peak directions (data of the model, not of any sampler): a lobe
+        // narrower than a cell's node spacing is found there (see `adaptive`).
+        let hints: Vec<DVec3> = brdf
+            .peak_hints(wi)
+            .as_slice()
+            .iter()
+            .map(|h| h.as_dvec3())
+            .collect();
         // A coarse total sets the absolute scale of the tolerance.
         let coarse: f64 = CellGrid::Polar {
             rings: 8,
             sectors: 16,
         }
-        .integrate_all(1e-3, &f)
+        .integrate_all(1e-3, &hints, &f)
         .iter()
         .sum();
         let abs_tol = tol * coarse.abs().max(1e-300);
-        let mass = grid.integrate_all(abs_tol, &f);
+        let mass = grid.integrate_all(abs_tol, &hints, &f);
         Ok(Self {
             brdf,
             wi,
             grid,
             tol: abs_tol,
+            hints,
             mass,
         })
     }
@@ -761,7 +843,7 @@ impl<'a, B: Brdf + ?Sized> Validation<'a, B> {
         // χ² against the sampler's own pdf: ∫ pdf dω = ∫ pdf / cos θ dA.
         let own = self
             .grid
-            .integrate_all(self.tol / total.max(1e-300), &|w: Vec3| {
+            .integrate_all(self.tol / total.max(1e-300), &self.hints, &|w: Vec3| {
                 let p = f64::from(sampler.pdf(w));
                 if w.z > 0.0 { p / f64::from(w.z) } else { 0.0 }
             });
@@ -902,7 +984,7 @@ mod tests {
             let (_, err) = gk15(&|x: f64| m::pow(x, f64::from(k)), 0.0, 1.0);
             assert!(err < 1e-15, "G7 x^{k}: {err}");
         }
-        let s = adaptive(&|x: f64| m::sqrt(x), 0.0, 1.0, 1e-12, 200);
+        let s = adaptive(&|x: f64| m::sqrt(x), 0.0, 1.0, &[], 1e-12, 200);
         assert!((s - 2.0 / 3.0).abs() < 1e-11);
     }
 
@@ -915,7 +997,7 @@ mod tests {
             (x - c).abs()
         };
         let exact = 0.5 * (c * c + (1.0 - c) * (1.0 - c));
-        let s = adaptive(&kink, 0.0, 1.0, 1e-12, MAX_PIECES);
+        let s = adaptive(&kink, 0.0, 1.0, &[], 1e-12, MAX_PIECES);
         assert!((s - exact).abs() < 1e-12, "{s} vs {exact}");
         // One chain of bisections toward the kink, not a full-depth tree.
         assert!(count.get() < 1500, "{} evaluations", count.get());
@@ -924,12 +1006,12 @@ mod tests {
             count.set(count.get() + 1);
             if x < c { 1.0 } else { 3.0 }
         };
-        let s = adaptive(&jump, 0.0, 1.0, 1e-9, MAX_PIECES);
+        let s = adaptive(&jump, 0.0, 1.0, &[], 1e-9, MAX_PIECES);
         assert!((s - (c + 3.0 * (1.0 - c))).abs() < 1e-9, "{s}");
         assert!(count.get() < 2000, "{} evaluations", count.get());
         // The limit bounds the work when the tolerance cannot be met.
         count.set(0);
-        let _ = adaptive(&jump, 0.0, 1.0, 0.0, 50);
+        let _ = adaptive(&jump, 0.0, 1.0, &[], 0.0, 50);
         assert!(count.get() <= 15 * (2 * 50), "{} evaluations", count.get());
     }
 
@@ -984,7 +1066,7 @@ mod tests {
                 sectors: 9,
             },
         ] {
-            let area: f64 = grid.integrate_all(1e-10, &|_| 1.0).iter().sum();
+            let area: f64 = grid.integrate_all(1e-10, &[], &|_| 1.0).iter().sum();
             assert!((area - PI).abs() < 1e-8, "{grid:?}: {area}");
             assert_eq!(grid.cell_of(Vec3::new(0.0, 0.0, -1.0)), None);
             assert_eq!(grid.cell_of(Vec3::new(f32::NAN, 0.0, 1.0)), None);
@@ -995,7 +1077,7 @@ mod tests {
             rings: 3,
             sectors: 5,
         };
-        let cells = g.integrate_all(1e-12, &|_| 1.0);
+        let cells = g.integrate_all(1e-12, &[], &|_| 1.0);
         for c in &cells {
             assert!((c - PI / 15.0).abs() < 1e-10);
         }
