@@ -103,6 +103,53 @@ impl PeakHints {
     }
 }
 
+/// The symmetries a model declares, which a baked sampler uses to fold its grid of incident
+/// directions (SPEC §7). Each flag is a promise about the continuous part [`Brdf::eval`]
+/// (and the delta part) for *every* pair of directions; a test checks every model's
+/// declaration by evaluation. A flag left false is always safe: it only costs a larger grid.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Symmetry {
+    /// f_r(R wi, R wo) = f_r(wi, wo) for every rotation R about the normal: f_r depends on φi
+    /// and φo only through φi − φo, so one grid row in θi serves every φi.
+    pub isotropic: bool,
+    /// f_r(Sx wi, Sx wo) = f_r(wi, wo) with Sx(x, y, z) = (−x, y, z): mirror-symmetric about
+    /// the plane x = 0.
+    pub mirror_x: bool,
+    /// f_r(Sy wi, Sy wo) = f_r(wi, wo) with Sy(x, y, z) = (x, −y, z): mirror-symmetric about
+    /// the plane y = 0.
+    pub mirror_y: bool,
+    /// f_r(wi, wo) = f_r(wo, wi) (Helmholtz reciprocity): the same tables serve both
+    /// transport roles; a non-reciprocal model needs its adjoint baked as well.
+    pub reciprocal: bool,
+}
+
+impl Symmetry {
+    /// Nothing promised: anisotropic, no mirror planes, not reciprocal (the safe default).
+    pub const NONE: Self = Self {
+        isotropic: false,
+        mirror_x: false,
+        mirror_y: false,
+        reciprocal: false,
+    };
+
+    /// Isotropic and reciprocal (implies both mirror planes).
+    pub const ISOTROPIC_RECIPROCAL: Self = Self {
+        isotropic: true,
+        mirror_x: true,
+        mirror_y: true,
+        reciprocal: true,
+    };
+
+    /// Anisotropic about the tangent, mirror-symmetric about both coordinate planes, and
+    /// reciprocal (Ward, Schlick's slab, Poulin–Fournier's cylinders along x).
+    pub const ORTHOTROPIC_RECIPROCAL: Self = Self {
+        isotropic: false,
+        mirror_x: true,
+        mirror_y: true,
+        reciprocal: true,
+    };
+}
+
 /// A bidirectional reflectance distribution function in the local shading frame (z = normal,
 /// x = tangent). `wi` points toward the light, `wo` toward the viewer; both unit, both away
 /// from the surface (SPEC §1).
@@ -139,6 +186,12 @@ pub trait Brdf: Send + Sync + fmt::Debug {
     fn delta_reflectance(&self, wi: Vec3) -> Vec3 {
         let _ = wi;
         Vec3::ZERO
+    }
+
+    /// The symmetries this instance has (see [`Symmetry`]). The default promises nothing,
+    /// which is always correct; models override it (a test checks every declaration).
+    fn symmetry(&self) -> Symmetry {
+        Symmetry::NONE
     }
 
     /// Directions where f_r(wi, ·) may peak, used to bound f_r over a region (SPEC §3).

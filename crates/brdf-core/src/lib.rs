@@ -44,7 +44,7 @@ pub mod registry;
 pub mod special;
 pub mod warp;
 
-pub use brdf::{Brdf, BrdfSample, PeakHints};
+pub use brdf::{Brdf, BrdfSample, PeakHints, Symmetry};
 pub use error::{DirectionError, ParamError};
 pub use frame::Frame;
 pub use glam;

@@ -920,3 +920,134 @@ mod htsg {
         assert!(b.sample(dir(100.0, 0.0), 0.0, Vec2::splat(0.5)).is_none());
     }
 }
+
+/// Every model's [`Brdf::symmetry`] declaration, checked by evaluation (SPEC §7): a baked
+/// sampler folds its grid of incident directions by exactly these promises, so a wrong one
+/// would make it sample the wrong lobe.
+mod symmetry {
+    use super::*;
+    use brdf_core::Symmetry;
+    use glam::Quat;
+
+    /// Whether f(a) and f(b) agree to 1e-4 relative (f32 directions moved by a rotation or a
+    /// reflection differ in their last bits; a sharp lobe amplifies that).
+    fn same(a: Vec3, b: Vec3) -> bool {
+        (a - b).abs().max_element()
+            <= 1e-4 * a.abs().max_element().max(b.abs().max_element()) + 1e-12
+    }
+
+    /// The first declared symmetry that evaluation refutes at 400 random pairs, if any.
+    fn refuted(b: &dyn Brdf, seed: u64) -> Option<&'static str> {
+        let s = b.symmetry();
+        let mut rng = Pcg64::seed_from_u64(seed);
+        let mut any =
+            |rng: &mut Pcg64| dir(rng.random_range(0.0..85.0), rng.random_range(0.0..360.0));
+        for _ in 0..400 {
+            let (wi, wo) = (any(&mut rng), any(&mut rng));
+            let f = b.eval(wi, wo);
+            if s.isotropic {
+                let r = Quat::from_rotation_z(rng.random_range(0.0..std::f32::consts::TAU));
+                if !same(f, b.eval(r * wi, r * wo)) {
+                    return Some("isotropic");
+                }
+            }
+            let sx = Vec3::new(-1.0, 1.0, 1.0);
+            if s.mirror_x && !same(f, b.eval(wi * sx, wo * sx)) {
+                return Some("mirror_x");
+            }
+            let sy = Vec3::new(1.0, -1.0, 1.0);
+            if s.mirror_y && !same(f, b.eval(wi * sy, wo * sy)) {
+                return Some("mirror_y");
+            }
+            if s.reciprocal && !same(f, b.eval(wo, wi)) {
+                return Some("reciprocal");
+            }
+        }
+        None
+    }
+
+    /// Each model at its defaults and at parameters that make it anisotropic or sharp.
+    fn cases() -> Vec<(&'static str, Vec<&'static str>)> {
+        let mut v: Vec<_> = registry::models()
+            .iter()
+            .map(|m| (m.name, vec![]))
+            .collect();
+        v.extend([
+            ("ward", vec!["alpha_x=0.05", "alpha_y=0.3"]),
+            ("ward", vec!["alpha_x=0.2", "alpha_y=0.2"]),
+            ("schlick", vec!["p=0.2", "r=0.05"]),
+            ("poulin-fournier", vec![]),
+            ("strauss", vec!["smoothness=0.9", "metalness=1"]),
+            ("cook-torrance", vec!["m=0.1"]),
+            ("phong", vec!["n=1000"]),
+        ]);
+        v
+    }
+
+    #[test]
+    fn every_declaration_holds() {
+        for (k, (name, params)) in cases().into_iter().enumerate() {
+            let b = build(name, &params);
+            assert_eq!(
+                refuted(&*b, 11 + k as u64),
+                None,
+                "{name} {params:?} declares {:?}",
+                b.symmetry()
+            );
+        }
+    }
+
+    /// The check can fail: a declaration each model does not have is refuted.
+    #[test]
+    fn a_false_declaration_is_refuted() {
+        #[derive(Debug)]
+        struct Claims<'a>(&'a dyn Brdf, Symmetry);
+        impl Brdf for Claims<'_> {
+            fn name(&self) -> &'static str {
+                self.0.name()
+            }
+            fn params(&self) -> brdf_core::ParamSet {
+                self.0.params()
+            }
+            fn eval(&self, wi: Vec3, wo: Vec3) -> Vec3 {
+                self.0.eval(wi, wo)
+            }
+            fn symmetry(&self) -> Symmetry {
+                self.1
+            }
+        }
+        let ward = build("ward", &["alpha_x=0.05", "alpha_y=0.3"]);
+        let iso = Symmetry {
+            isotropic: true,
+            ..Symmetry::NONE
+        };
+        assert_eq!(refuted(&Claims(&*ward, iso), 1), Some("isotropic"));
+        let strauss = build("strauss", &[]);
+        let rec = Symmetry {
+            reciprocal: true,
+            ..Symmetry::NONE
+        };
+        assert_eq!(refuted(&Claims(&*strauss, rec), 2), Some("reciprocal"));
+        // Poulin–Fournier's cylinders along x: no symmetry swaps x and y.
+        #[derive(Debug)]
+        struct Swapped(Box<dyn Brdf>);
+        impl Brdf for Swapped {
+            fn name(&self) -> &'static str {
+                "swapped"
+            }
+            fn params(&self) -> brdf_core::ParamSet {
+                self.0.params()
+            }
+            fn eval(&self, wi: Vec3, wo: Vec3) -> Vec3 {
+                // Tilt the anisotropy axis by 30°: no mirror plane left.
+                let r = Quat::from_rotation_z(0.5);
+                self.0.eval(r * wi, r * wo)
+            }
+            fn symmetry(&self) -> Symmetry {
+                Symmetry::ORTHOTROPIC_RECIPROCAL
+            }
+        }
+        let tilted = Swapped(build("ward", &["alpha_x=0.05", "alpha_y=0.3"]));
+        assert_eq!(refuted(&tilted, 3), Some("mirror_x"));
+    }
+}

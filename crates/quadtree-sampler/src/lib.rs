@@ -56,6 +56,7 @@ extern crate alloc;
 #[cfg(feature = "std")]
 extern crate std;
 
+mod baked;
 pub mod chart;
 pub mod colormap;
 mod config;
@@ -68,6 +69,11 @@ mod tree;
 pub mod validate;
 mod warp;
 
+pub use baked::{
+    BakeConfig, BakeError, BakeGrid, BakedAt, BakedError, BakedMode, BakedSampler, BrokenAt, BrokenPdf,
+    DEFAULT_DEFENSIVE, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, GRID_THETA_MAX_DEG, MAX_TREES,
+    PhiDomain, Role, WorldBsdf,
+};
 pub use brdf_core;
 pub use config::{BuildConfig, IntegrationRule};
 pub use encoder::{Encoder, refleja};

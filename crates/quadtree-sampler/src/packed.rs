@@ -402,6 +402,99 @@ impl PackedTree {
         Quadtree::from_parts(self.unpacked_nodes(), self.map, self.stats.budget_exhausted)
     }
 
+    /// The raw words of every node (`link`, then `data`), for serialisation.
+    #[must_use]
+    pub(crate) fn raw_nodes(&self) -> Vec<[u32; 4]> {
+        self.nodes
+            .iter()
+            .map(|n| [n.link, n.data[0], n.data[1], n.data[2]])
+            .collect()
+    }
+
+    /// Rebuilds a packed tree from [`PackedTree::raw_nodes`], checking everything selection
+    /// and sampling rely on, so that no input can make them index out of range, loop or
+    /// return a negative or NaN bound: one root; every inner node's four children lie after
+    /// it, inside the arena, and are nobody else's; child starts are ordered and within
+    /// [0, 2³¹]; a leaf's chart is one of the three and fits the map; its bound is finite and
+    /// ≥ 0; the depth stays within 30; `volume` is finite and ≥ 0.
+    pub(crate) fn from_raw(
+        raw: &[[u32; 4]],
+        map: DiskMap,
+        volume: f64,
+        budget_exhausted: bool,
+    ) -> Result<Self, &'static str> {
+        if raw.is_empty() {
+            return Err("a tree with no nodes");
+        }
+        if !(volume.is_finite() && volume >= 0.0) {
+            return Err("a tree volume that is negative or not finite");
+        }
+        let n = raw.len();
+        let mut parent_seen = alloc::vec![false; n];
+        let mut depth = alloc::vec![0u8; n];
+        for (i, w) in raw.iter().enumerate() {
+            let link = w[0];
+            if link & LEAF_FLAG != 0 {
+                if link & !(LEAF_FLAG | LIVE_FLAG) > 2 {
+                    return Err("a leaf with an unknown chart");
+                }
+                let chart = link & 3;
+                let fits = match map {
+                    DiskMap::Orthographic => chart != 2,
+                    DiskMap::Concentric => chart != 1,
+                };
+                if !fits {
+                    return Err("a leaf whose chart does not belong to the tree's map");
+                }
+                let m = f32::from_bits(w[1]);
+                if !(m.is_finite() && m >= 0.0) {
+                    return Err("a leaf bound that is negative or not finite");
+                }
+                let v1 = f32::from_bits(w[2]);
+                if !(v1.is_finite() && v1 >= 0.0) {
+                    return Err("a leaf v1 that is negative or not finite");
+                }
+            } else {
+                let c = link as usize;
+                if c <= i || c.checked_add(4).is_none_or(|e| e > n) {
+                    return Err("an inner node whose children are out of order or range");
+                }
+                if !(w[1] <= w[2] && w[2] <= w[3] && w[3] <= ONE) {
+                    return Err("an inner node whose child intervals are out of order");
+                }
+                if depth[i] >= 30 {
+                    return Err("a tree deeper than 30 levels");
+                }
+                for k in c..c + 4 {
+                    if parent_seen[k] {
+                        return Err("a node with two parents");
+                    }
+                    parent_seen[k] = true;
+                    depth[k] = depth[i] + 1;
+                }
+            }
+        }
+        if parent_seen[0] || parent_seen[1..].iter().any(|&p| !p) {
+            return Err("nodes that are not one tree");
+        }
+        let nodes = raw
+            .iter()
+            .map(|w| PackedNode {
+                link: w[0],
+                data: [w[1], w[2], w[3]],
+            })
+            .collect();
+        let mut packed = Self {
+            nodes,
+            map,
+            volume,
+            stats: TreeStats::default(),
+        };
+        packed.stats = Quadtree::from_parts(packed.unpacked_nodes(), map, budget_exhausted).stats();
+        packed.restat();
+        Ok(packed)
+    }
+
     /// Multiplies every leaf bound by `factor` (negative controls only).
     pub(crate) fn scale_bounds(&mut self, factor: f64) {
         for n in &mut self.nodes {

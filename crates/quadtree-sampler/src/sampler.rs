@@ -69,6 +69,48 @@ pub trait DirectionSampler: Send + Sync {
     fn pdf(&self, wo: Vec3) -> f32;
 }
 
+/// `muestrear` on a packed tree for any f (the quadtree's own model, or a baked sampler's
+/// grid model): a point uniform in the leaf's proposal box, a height uniform in [0, M);
+/// accept when the height is below Y(f)·(chart Jacobian). Returns the accepted chart point,
+/// the unit f32 direction a caller sees, f there (RGB, evaluated once per trial at exactly
+/// that vector) and the trials; `None` after [`MAX_TRIALS`] or for a leaf that holds
+/// nothing. Every f > M met is counted in `violations`. One 64-bit draw places the point
+/// (32 bits per axis: 2⁻³² of the leaf's side) and one more the height.
+pub(crate) fn rejection_in_leaf<R: Rng + ?Sized>(
+    tree: &PackedTree,
+    leaf: &Selected,
+    eval: impl Fn(Vec3) -> Vec3,
+    rng: &mut R,
+    violations: &AtomicU64,
+) -> Option<(ChartPoint, Vec3, Vec3, u32)> {
+    let (prop, m) = tree.proposal(leaf);
+    // M is 0 for a leaf that holds nothing (selected only when the whole tree is empty).
+    if m <= 0.0 || m.is_nan() {
+        return None;
+    }
+    let span = prop.hi - prop.lo;
+    const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
+    for trial in 1..=MAX_TRIALS {
+        let r = rng.next_u64();
+        let uv = DVec2::new((r >> 32) as f64, (r & 0xffff_ffff) as f64) * TO_UNIT;
+        let q = prop.lo + span * uv;
+        let z = m * uniform_f64(rng);
+        let Some(c) = prop.point(tree.map(), &leaf.rect, q) else {
+            continue;
+        };
+        let wo = c.w.as_vec3().normalize_or_zero();
+        let f = eval(wo);
+        let h = f64::from(luminance(f)) * c.jacobian;
+        if h > m {
+            violations.fetch_add(1, Ordering::Relaxed);
+        }
+        if z < h {
+            return Some((c, wo, f, trial));
+        }
+    }
+    None
+}
+
 /// The seed's sampler: a quadtree built once for `wi`, then any number of samples (`&self`,
 /// `Sync`). Rejection mode: the density is ∝ f_r·cos θ up to the leaf-integral error, and the
 /// reported pdf is f_r·cos θ·J/V (V the tree's volume, J the map's Jacobian).
@@ -187,33 +229,17 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
         leaf: &Selected,
         rng: &mut R,
     ) -> Option<(ChartPoint, Vec3, Vec3, u32)> {
-        let (prop, m) = self.tree.proposal(leaf);
-        // M is 0 for a leaf that holds nothing (selected only when the whole tree is empty).
-        if m <= 0.0 || m.is_nan() {
-            return None;
+        let r = rejection_in_leaf(
+            &self.tree,
+            leaf,
+            |wo| self.brdf.eval(self.wi, wo),
+            rng,
+            &self.violations,
+        );
+        if r.is_none() {
+            self.gave_up.fetch_add(1, Ordering::Relaxed);
         }
-        let span = prop.hi - prop.lo;
-        const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
-        for trial in 1..=MAX_TRIALS {
-            let r = rng.next_u64();
-            let uv = DVec2::new((r >> 32) as f64, (r & 0xffff_ffff) as f64) * TO_UNIT;
-            let q = prop.lo + span * uv;
-            let z = m * uniform_f64(rng);
-            let Some(c) = prop.point(self.config.map, &leaf.rect, q) else {
-                continue;
-            };
-            let wo = c.w.as_vec3().normalize_or_zero();
-            let f = self.brdf.eval(self.wi, wo);
-            let h = f64::from(luminance(f)) * c.jacobian;
-            if h > m {
-                self.violations.fetch_add(1, Ordering::Relaxed);
-            }
-            if z < h {
-                return Some((c, wo, f, trial));
-            }
-        }
-        self.gave_up.fetch_add(1, Ordering::Relaxed);
-        None
+        r
     }
 
     /// Draws one direction: select a region, then rejection-sample it. f_r is evaluated once

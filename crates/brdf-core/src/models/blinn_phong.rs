@@ -1,6 +1,7 @@
 use super::{
     cosine_pdf64, diffuse_probability, half64, pdf_pair, reflect_about_half, sample_mixture,
 };
+use crate::Symmetry;
 use crate::brdf::{Brdf, BrdfSample};
 use crate::error::ParamError;
 use crate::geometry::{cos_power, upper_pair};
@@ -81,6 +82,10 @@ impl BlinnPhong {
 impl Brdf for BlinnPhong {
     fn name(&self) -> &'static str {
         "blinn-phong"
+    }
+
+    fn symmetry(&self) -> Symmetry {
+        Symmetry::ISOTROPIC_RECIPROCAL
     }
 
     fn params(&self) -> ParamSet {

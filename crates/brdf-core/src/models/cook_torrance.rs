@@ -1,6 +1,7 @@
 use super::{
     cosine_pdf64, diffuse_probability, half64, pdf_pair, reflect_about_half, sample_mixture,
 };
+use crate::Symmetry;
 use crate::brdf::{Brdf, BrdfSample};
 use crate::error::ParamError;
 use crate::geometry::upper_pair;
@@ -113,6 +114,10 @@ fn fresnel_dielectric(eta: f64, u: f64) -> f64 {
 impl Brdf for CookTorrance {
     fn name(&self) -> &'static str {
         "cook-torrance"
+    }
+
+    fn symmetry(&self) -> Symmetry {
+        Symmetry::ISOTROPIC_RECIPROCAL
     }
 
     fn params(&self) -> ParamSet {

@@ -1,3 +1,4 @@
+use crate::Symmetry;
 use crate::brdf::Brdf;
 use crate::error::ParamError;
 use crate::geometry::{above_horizon, luminance, upper_pair};
@@ -274,6 +275,10 @@ pub fn htsg_sum(g: f64, a: f64) -> f64 {
 impl Brdf for Htsg {
     fn name(&self) -> &'static str {
         "htsg"
+    }
+
+    fn symmetry(&self) -> Symmetry {
+        Symmetry::ISOTROPIC_RECIPROCAL
     }
 
     fn params(&self) -> ParamSet {

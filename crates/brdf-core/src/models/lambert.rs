@@ -1,3 +1,4 @@
+use crate::Symmetry;
 use crate::brdf::{Brdf, BrdfSample};
 use crate::error::ParamError;
 use crate::geometry::{above_horizon, upper_pair};
@@ -39,6 +40,10 @@ impl Lambert {
 impl Brdf for Lambert {
     fn name(&self) -> &'static str {
         "lambert"
+    }
+
+    fn symmetry(&self) -> Symmetry {
+        Symmetry::ISOTROPIC_RECIPROCAL
     }
 
     fn params(&self) -> ParamSet {

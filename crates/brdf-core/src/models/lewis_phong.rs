@@ -1,4 +1,5 @@
 use super::{MirrorLobe, cosine_pdf64, diffuse_probability, pdf_pair, sample_mixture};
+use crate::Symmetry;
 use crate::brdf::{Brdf, BrdfSample};
 use crate::error::ParamError;
 use crate::geometry::upper_pair;
@@ -89,6 +90,10 @@ pub(crate) fn check_energy(model: &'static str, kd: Vec3, ks: Vec3) -> Result<()
 impl Brdf for LewisPhong {
     fn name(&self) -> &'static str {
         "lewis-phong"
+    }
+
+    fn symmetry(&self) -> Symmetry {
+        Symmetry::ISOTROPIC_RECIPROCAL
     }
 
     fn params(&self) -> ParamSet {

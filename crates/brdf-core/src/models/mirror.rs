@@ -1,3 +1,4 @@
+use crate::Symmetry;
 use crate::brdf::{Brdf, PeakHints};
 use crate::error::ParamError;
 use crate::geometry::{above_horizon, mirror};
@@ -38,6 +39,10 @@ impl Mirror {
 impl Brdf for Mirror {
     fn name(&self) -> &'static str {
         "mirror"
+    }
+
+    fn symmetry(&self) -> Symmetry {
+        Symmetry::ISOTROPIC_RECIPROCAL
     }
 
     fn params(&self) -> ParamSet {

@@ -1,3 +1,4 @@
+use crate::Symmetry;
 use crate::brdf::{Brdf, BrdfSample, PeakHints};
 use crate::error::ParamError;
 use crate::geometry::{above_horizon, cos_delta_phi64, mirror, upper_pair};
@@ -59,6 +60,10 @@ impl OrenNayar {
 impl Brdf for OrenNayar {
     fn name(&self) -> &'static str {
         "oren-nayar"
+    }
+
+    fn symmetry(&self) -> Symmetry {
+        Symmetry::ISOTROPIC_RECIPROCAL
     }
 
     fn params(&self) -> ParamSet {

@@ -1,4 +1,5 @@
 use super::{MirrorLobe, cosine_pdf64, diffuse_probability, pdf_pair, sample_mixture};
+use crate::Symmetry;
 use crate::brdf::{Brdf, BrdfSample};
 use crate::error::ParamError;
 use crate::geometry::upper_pair;
@@ -65,6 +66,10 @@ impl Phong {
 impl Brdf for Phong {
     fn name(&self) -> &'static str {
         "phong"
+    }
+
+    fn symmetry(&self) -> Symmetry {
+        Symmetry::ISOTROPIC_RECIPROCAL
     }
 
     fn params(&self) -> ParamSet {

@@ -1,5 +1,6 @@
 use super::MirrorLobe;
 use super::lewis_phong::check_energy;
+use crate::Symmetry;
 use crate::brdf::{Brdf, PeakHints};
 use crate::error::ParamError;
 use crate::geometry::{mirror, upper_pair};
@@ -307,6 +308,10 @@ fn lobe_integral(wi: DVec3, wo: DVec3, n: f64, a: f64, b: f64) -> f64 {
 impl Brdf for PoulinFournier {
     fn name(&self) -> &'static str {
         "poulin-fournier"
+    }
+
+    fn symmetry(&self) -> Symmetry {
+        Symmetry::ORTHOTROPIC_RECIPROCAL
     }
 
     fn params(&self) -> ParamSet {

@@ -1,4 +1,5 @@
 use super::{half64, pdf_pair, reflect_about_half, sample_mixture};
+use crate::Symmetry;
 use crate::brdf::{Brdf, BrdfSample};
 use crate::error::ParamError;
 use crate::geometry::upper_pair;
@@ -66,6 +67,14 @@ impl Schlick {
 impl Brdf for Schlick {
     fn name(&self) -> &'static str {
         "schlick"
+    }
+
+    fn symmetry(&self) -> Symmetry {
+        if self.p == 1.0 {
+            Symmetry::ISOTROPIC_RECIPROCAL
+        } else {
+            Symmetry::ORTHOTROPIC_RECIPROCAL
+        }
     }
 
     fn params(&self) -> ParamSet {

@@ -1,4 +1,5 @@
 use super::{MirrorLobe, cosine_pdf64, diffuse_probability, pdf_pair, sample_mixture};
+use crate::Symmetry;
 use crate::brdf::{Brdf, BrdfSample};
 use crate::error::ParamError;
 use crate::geometry::upper_pair;
@@ -161,6 +162,14 @@ impl Strauss {
 impl Brdf for Strauss {
     fn name(&self) -> &'static str {
         "strauss"
+    }
+
+    fn symmetry(&self) -> Symmetry {
+        // F(xi), Cs and 1/cos θi depend on the light side (MODELS.md §12).
+        Symmetry {
+            reciprocal: false,
+            ..Symmetry::ISOTROPIC_RECIPROCAL
+        }
     }
 
     fn params(&self) -> ParamSet {

@@ -1,6 +1,7 @@
 use super::{
     cosine_pdf64, diffuse_probability, half64, pdf_pair, reflect_about_half, sample_mixture,
 };
+use crate::Symmetry;
 use crate::brdf::{Brdf, BrdfSample};
 use crate::error::ParamError;
 use crate::geometry::upper_pair;
@@ -72,6 +73,14 @@ impl Ward {
 impl Brdf for Ward {
     fn name(&self) -> &'static str {
         "ward"
+    }
+
+    fn symmetry(&self) -> Symmetry {
+        if self.alpha_x == self.alpha_y {
+            Symmetry::ISOTROPIC_RECIPROCAL
+        } else {
+            Symmetry::ORTHOTROPIC_RECIPROCAL
+        }
     }
 
     fn params(&self) -> ParamSet {

@@ -1,0 +1,1337 @@
+//! Render-time sampling at every incident direction (SPEC §7): [`BakedSampler`], built once
+//! per material, answers `sample`, `pdf` and `eval` at any `wi` with an exact pdf.
+//!
+//! ## What is baked
+//! A quadtree (SPEC §3) at each direction of a grid of incident directions that reaches
+//! grazing: for an isotropic model a 1D grid in θi (φi by rotation about the normal), for an
+//! anisotropic one a 2D grid in (θi, φi) over the part of the φ circle its declared mirror
+//! symmetries leave ([`brdf_core::Symmetry`]: a quarter for Ward, Schlick's slab and
+//! Poulin–Fournier's cylinders). Each grid tree is kept twice, compactly: its 16-byte
+//! rejection layout ([`PackedTree`]) and an 8-byte-per-node warp table (the same leaves, each
+//! node's share of the volume), so one bake serves both [`BakedMode`]s.
+//!
+//! ## Sampling at a wi off the grid: an exact mixture
+//! `wi` is first folded into the grid's domain by its symmetries (a rotation about z, or
+//! reflections in x and y: both preserve solid angle and f_r). Its neighbouring grid trees k
+//! get interpolation weights w_k (linear in θi, bilinear in (θi, φi)). A sharp lobe moves
+//! with `wi` faster than any affordable grid follows, so each neighbour is not used as is:
+//! its directions are **rotated by the rotation R_k that carries the grid direction's mirror
+//! r(wi_k) onto r(wi)** — the lobe of tree k then sits where the lobe of `wi` is. A rotation
+//! has Jacobian 1, so component k's density at `wo` is exactly p_k(R_k⁻¹ wo) (0 where
+//! R_k⁻¹ wo is below the horizon: such samples are lost, never re-drawn). With a defensive
+//! share δ of cosine sampling, which keeps the density positive wherever f_r·cos θ is,
+//!
+//! pdf(wi, wo) = δ·cos θo/π + (1 − δ)·Σ_k w_k·p_k(R_k⁻¹ wo)  (per unit solid angle),
+//!
+//! and that is what `sample` draws: `uc` picks the defensive part or neighbour k, `u` drives
+//! the chosen tree, the result is rotated by R_k and unfolded. The reported pdf is the true
+//! density of what was drawn, so f·cos θo/pdf is unbiased and the pdf is fit for multiple
+//! importance sampling at any (wi, wo). With p_k:
+//! - **rejection**: Y(f_r(wi_k, w))·cos θ·J/V_k, tree k's own density (exact up to its leaf
+//!   integrals, as for [`crate::QuadtreeSampler`]); `u` descends the tree, the rejection trials
+//!   draw from an RNG; one model evaluation per neighbour for the pdf;
+//! - **warp**: tree k's piecewise-constant proxy (each leaf's share of the volume spread
+//!   uniformly over its square), a deterministic function of (uc, u) — stratified and
+//!   low-discrepancy points stay stratified — and its pdf is a table look-up per neighbour,
+//!   without evaluating the model.
+//!
+//! ## Transport roles
+//! The tables sample `wo` (toward the viewer) given `wi` (toward the light): a light path's
+//! step, [`Role::Importance`]. A camera path knows the viewer's direction and samples the
+//! light's, [`Role::Radiance`]: for a reciprocal model the same tables serve with the names
+//! swapped; for a non-reciprocal one (`strauss`) the bake also holds the adjoint's trees
+//! (f*(a, b) = f_r(b, a)), which sample ∝ f_r(wi, wo)·cos θi given `wo`.
+//!
+//! ## Compared with the alternatives
+//! A tree per shading point is exact but costs 1–20 ms (0.4–0.7 s for He–Torrance and
+//! Poulin–Fournier) per `wi`; a cache binned in θi (what `examples/furnace.rs` did) returns
+//! the pdf of the bin's tree, not of the direction it was asked about, which biases MIS;
+//! tabulated BSDFs conditioned on wi (Mitsuba's `Marginal2D`, pbrt's `MeasuredBxDF`)
+//! interpolate their tables between slices, which keeps the pdf exact only because the
+//! interpolation is linear in a fixed parameterisation — fine for broad data, but a sharp
+//! lobe then smears between slices. The rotation above keeps sharp lobes sharp between
+//! slices and the mixture keeps the pdf exact.
+
+use crate::chart::square_direction;
+use crate::config::BuildConfig;
+use crate::error::BuildError;
+use crate::packed::PackedTree;
+use crate::sampler::{Sample, rejection_in_leaf};
+use crate::tree::Quadtree;
+use alloc::sync::Arc;
+use alloc::vec::Vec;
+use brdf_core::geometry::{above_horizon, luminance, mirror};
+use brdf_core::warp::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
+use brdf_core::{Brdf, BrdfSample, DirectionError, ParamSet, PeakHints, Symmetry};
+use core::f64::consts::{FRAC_PI_2, PI, TAU};
+use core::fmt;
+use core::sync::atomic::{AtomicU64, Ordering};
+use glam::{DMat3, DQuat, DVec2, DVec3, Vec2, Vec3};
+use rand_core::Rng;
+
+/// The polar angle of the grid's last row of trees, in degrees. A `wi` beyond it (up to the
+/// horizon) uses that row alone, rotated onto its mirror direction.
+pub const GRID_THETA_MAX_DEG: f64 = 89.5;
+
+/// Default rows of trees in θi (from 0° to [`GRID_THETA_MAX_DEG`]), chosen by measurement
+/// (see `examples/bake_grid.rs` and the README's numbers).
+pub const DEFAULT_THETA_STEPS: u16 = 32;
+
+/// Default columns of trees in φi over the folded φ range of an anisotropic model.
+pub const DEFAULT_PHI_STEPS: u16 = 9;
+
+/// Default defensive share δ of cosine sampling in the mixture.
+pub const DEFAULT_DEFENSIVE: f64 = 0.02;
+
+/// The most trees one bake may hold (a typed error beyond: a grid of 10⁶ trees is a typo).
+pub const MAX_TREES: usize = 1 << 16;
+
+/// Which direction is given and which is sampled (pbrt's `TransportMode`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Role {
+    /// A camera path: the direction toward the viewer (`wo`) is given; the direction toward
+    /// the light (`wi`) is sampled ∝ f_r(wi, wo)·cos θi.
+    Radiance,
+    /// A light path (and SPEC §1's convention): `wi` toward the light is given; `wo` is
+    /// sampled ∝ f_r(wi, wo)·cos θo. The tables' own direction.
+    Importance,
+}
+
+/// How the chosen grid tree is sampled (see the module doc).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum BakedMode {
+    /// Rejection in the chosen leaf (exact ∝ Y(f_r)·cos θ per tree; an RNG draws the trials).
+    #[default]
+    Rejection,
+    /// The piecewise-constant proxy, a deterministic function of (uc, u).
+    Warp,
+}
+
+impl BakedMode {
+    /// The CLI name (`rejection`, `warp`).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Rejection => "rejection",
+            Self::Warp => "warp",
+        }
+    }
+}
+
+/// How a [`BakedSampler`] is built.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BakeConfig {
+    /// Each grid tree's build options (map, split rule, target trials, ...).
+    pub build: BuildConfig,
+    /// Rows of trees in θi, from 0° to [`GRID_THETA_MAX_DEG`] inclusive (≥ 2).
+    pub theta_steps: u16,
+    /// Columns of trees in φi over the folded φ range, for anisotropic models (≥ 2 on an
+    /// interval, ≥ 3 on the full circle); ignored for isotropic ones.
+    pub phi_steps: u16,
+    /// The defensive cosine share δ ∈ (0, 1) of the mixture.
+    pub defensive: f64,
+}
+
+impl Default for BakeConfig {
+    fn default() -> Self {
+        Self {
+            build: BuildConfig::default(),
+            theta_steps: DEFAULT_THETA_STEPS,
+            phi_steps: DEFAULT_PHI_STEPS,
+            defensive: DEFAULT_DEFENSIVE,
+        }
+    }
+}
+
+/// Why a [`BakedSampler`] could not be built.
+#[derive(Clone, Debug, PartialEq)]
+pub enum BakeError {
+    /// `theta_steps` is below 2.
+    ThetaSteps(u16),
+    /// `phi_steps` is below what the folded φ range needs (2, or 3 on the full circle).
+    PhiSteps {
+        /// The value given.
+        got: u16,
+        /// The least allowed.
+        min: u16,
+    },
+    /// The grid would hold more than [`MAX_TREES`] trees.
+    TooManyTrees(usize),
+    /// `defensive` is not in (0, 1).
+    Defensive(f64),
+    /// The model has no continuous part (the perfect mirror): nothing to bake.
+    DeltaModel(&'static str),
+    /// A grid tree could not be built.
+    Tree {
+        /// Its θi, degrees.
+        theta_deg: f64,
+        /// Its φi, degrees.
+        phi_deg: f64,
+        /// Why.
+        source: BuildError,
+    },
+}
+
+impl fmt::Display for BakeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::ThetaSteps(n) => write!(f, "theta steps = {n}: at least 2 are needed"),
+            Self::PhiSteps { got, min } => {
+                write!(f, "phi steps = {got}: this model's φ range needs at least {min}")
+            }
+            Self::TooManyTrees(n) => {
+                write!(f, "a grid of {n} trees is more than the {MAX_TREES} allowed")
+            }
+            Self::Defensive(d) => write!(f, "defensive share = {d} must be in (0, 1)"),
+            Self::DeltaModel(m) => write!(
+                f,
+                "model `{m}` is a Dirac delta: it has no continuous part to bake (sample it analytically)"
+            ),
+            Self::Tree {
+                theta_deg,
+                phi_deg,
+                source,
+            } => write!(
+                f,
+                "the tree at θi = {theta_deg:.3}°, φi = {phi_deg:.3}°: {source}"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for BakeError {}
+
+/// Why a call on a [`BakedSampler`] has no answer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum BakedError {
+    /// The given direction is NaN, infinite, zero or below the horizon.
+    Direction(DirectionError),
+}
+
+impl fmt::Display for BakedError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Direction(e) => write!(f, "given direction: {e}"),
+        }
+    }
+}
+
+impl core::error::Error for BakedError {}
+
+impl From<DirectionError> for BakedError {
+    fn from(e: DirectionError) -> Self {
+        Self::Direction(e)
+    }
+}
+
+/// The part of the φi circle a grid covers, from the model's declared symmetries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PhiDomain {
+    /// Isotropic: one row, φi = 0; any wi is rotated about z onto it.
+    Rotation,
+    /// Mirror-symmetric in x and y: φi ∈ [0°, 90°] (wi reflected into x, y ≥ 0).
+    Quadrant,
+    /// Mirror-symmetric in y only: φi ∈ [0°, 180°] (wi reflected into y ≥ 0).
+    UpperHalf,
+    /// Mirror-symmetric in x only: φi ∈ [−90°, 90°] (wi reflected into x ≥ 0).
+    RightHalf,
+    /// No symmetry: the whole circle, periodic.
+    Circle,
+}
+
+impl PhiDomain {
+    /// The domain a model's symmetries allow.
+    #[must_use]
+    pub fn of(s: Symmetry) -> Self {
+        match (s.isotropic, s.mirror_x, s.mirror_y) {
+            (true, _, _) => Self::Rotation,
+            (false, true, true) => Self::Quadrant,
+            (false, false, true) => Self::UpperHalf,
+            (false, true, false) => Self::RightHalf,
+            (false, false, false) => Self::Circle,
+        }
+    }
+
+    /// Its φ interval in radians (`Circle`: [0, 2π), periodic).
+    fn range(self) -> (f64, f64) {
+        match self {
+            Self::Rotation => (0.0, 0.0),
+            Self::Quadrant => (0.0, FRAC_PI_2),
+            Self::UpperHalf => (0.0, PI),
+            Self::RightHalf => (-FRAC_PI_2, FRAC_PI_2),
+            Self::Circle => (0.0, TAU),
+        }
+    }
+
+    /// The orthogonal map F (a rotation about z or reflections) that brings `w` into the
+    /// domain; F is its own kind of symmetry of f_r, so f_r(F wi, F wo) = f_r(wi, wo).
+    fn fold(self, w: DVec3) -> DMat3 {
+        let sx = if w.x < 0.0 { -1.0 } else { 1.0 };
+        let sy = if w.y < 0.0 { -1.0 } else { 1.0 };
+        match self {
+            Self::Rotation => {
+                if w.x == 0.0 && w.y == 0.0 {
+                    DMat3::IDENTITY
+                } else {
+                    DMat3::from_rotation_z(-w.y.atan2(w.x))
+                }
+            }
+            Self::Quadrant => DMat3::from_diagonal(DVec3::new(sx, sy, 1.0)),
+            Self::UpperHalf => DMat3::from_diagonal(DVec3::new(1.0, sy, 1.0)),
+            Self::RightHalf => DMat3::from_diagonal(DVec3::new(sx, 1.0, 1.0)),
+            Self::Circle => DMat3::IDENTITY,
+        }
+    }
+}
+
+/// The grid of incident directions of a bake.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakeGrid {
+    domain: PhiDomain,
+    /// θi of each row, radians, uniform from 0 to [`GRID_THETA_MAX_DEG`].
+    thetas: Vec<f64>,
+    /// φi of each column, radians.
+    phis: Vec<f64>,
+}
+
+impl BakeGrid {
+    /// The grid for a model of these symmetries.
+    pub fn new(symmetry: Symmetry, theta_steps: u16, phi_steps: u16) -> Result<Self, BakeError> {
+        if theta_steps < 2 {
+            return Err(BakeError::ThetaSteps(theta_steps));
+        }
+        let domain = PhiDomain::of(symmetry);
+        let t_max = GRID_THETA_MAX_DEG.to_radians();
+        let nt = usize::from(theta_steps);
+        let thetas = (0..nt)
+            .map(|i| t_max * i as f64 / (nt - 1) as f64)
+            .collect();
+        let (lo, hi) = domain.range();
+        let phis = match domain {
+            PhiDomain::Rotation => alloc::vec![0.0],
+            PhiDomain::Circle => {
+                if phi_steps < 3 {
+                    return Err(BakeError::PhiSteps {
+                        got: phi_steps,
+                        min: 3,
+                    });
+                }
+                let n = usize::from(phi_steps);
+                (0..n).map(|j| TAU * j as f64 / n as f64).collect()
+            }
+            _ => {
+                if phi_steps < 2 {
+                    return Err(BakeError::PhiSteps {
+                        got: phi_steps,
+                        min: 2,
+                    });
+                }
+                let n = usize::from(phi_steps);
+                (0..n)
+                    .map(|j| lo + (hi - lo) * j as f64 / (n - 1) as f64)
+                    .collect()
+            }
+        };
+        let grid = Self {
+            domain,
+            thetas,
+            phis,
+        };
+        if grid.len() > MAX_TREES {
+            return Err(BakeError::TooManyTrees(grid.len()));
+        }
+        Ok(grid)
+    }
+
+    /// The folded φ range this grid covers.
+    #[must_use]
+    pub fn domain(&self) -> PhiDomain {
+        self.domain
+    }
+
+    /// θi of the rows, degrees.
+    #[must_use]
+    pub fn thetas_deg(&self) -> Vec<f64> {
+        self.thetas.iter().map(|t| t.to_degrees()).collect()
+    }
+
+    /// φi of the columns, degrees.
+    #[must_use]
+    pub fn phis_deg(&self) -> Vec<f64> {
+        self.phis.iter().map(|p| p.to_degrees()).collect()
+    }
+
+    /// Number of trees (rows × columns).
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.thetas.len() * self.phis.len()
+    }
+
+    /// Whether the grid holds no tree (never, for a grid [`BakeGrid::new`] made).
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The incident direction of tree `k` (row-major: θ row × columns + φ column), as the
+    /// unit f32 vector its tree was built for.
+    #[must_use]
+    pub fn direction(&self, k: usize) -> Vec3 {
+        let (t, p) = (self.thetas[k / self.phis.len()], self.phis[k % self.phis.len()]);
+        let (st, ct) = t.sin_cos();
+        let (sp, cp) = p.sin_cos();
+        DVec3::new(st * cp, st * sp, ct).as_vec3().normalize()
+    }
+
+    /// θi and φi of tree `k`, degrees.
+    #[must_use]
+    pub fn angles_deg(&self, k: usize) -> (f64, f64) {
+        (
+            self.thetas[k / self.phis.len()].to_degrees(),
+            self.phis[k % self.phis.len()].to_degrees(),
+        )
+    }
+
+    /// The neighbouring trees of a folded direction `w` (unit, z > 0) and their weights
+    /// (summing to 1; linear in θ, bilinear in (θ, φ)); unused entries have weight 0.
+    fn neighbours(&self, w: DVec3) -> [(usize, f64); 4] {
+        let theta = w.z.clamp(-1.0, 1.0).acos();
+        let nt = self.thetas.len();
+        let dt = self.thetas[1] - self.thetas[0];
+        let t = (theta / dt).clamp(0.0, (nt - 1) as f64);
+        let i = (t.floor() as usize).min(nt - 2);
+        let ft = (t - i as f64).clamp(0.0, 1.0);
+        let np = self.phis.len();
+        let (j0, j1, fp) = match self.domain {
+            PhiDomain::Rotation => (0, 0, 0.0),
+            PhiDomain::Circle => {
+                let dp = TAU / np as f64;
+                let mut phi = w.y.atan2(w.x);
+                if phi < 0.0 {
+                    phi += TAU;
+                }
+                let p = phi / dp;
+                let j = (p.floor() as usize).min(np - 1);
+                (j, (j + 1) % np, (p - j as f64).clamp(0.0, 1.0))
+            }
+            _ => {
+                let (lo, hi) = self.domain.range();
+                let phi = w.y.atan2(w.x).clamp(lo, hi);
+                let p = ((phi - lo) / (hi - lo) * (np - 1) as f64).clamp(0.0, (np - 1) as f64);
+                let j = (p.floor() as usize).min(np - 2);
+                (j, j + 1, (p - j as f64).clamp(0.0, 1.0))
+            }
+        };
+        let at = |r: usize, c: usize| r * np + c;
+        [
+            (at(i, j0), (1.0 - ft) * (1.0 - fp)),
+            (at(i + 1, j0), ft * (1.0 - fp)),
+            (at(i, j1), (1.0 - ft) * fp),
+            (at(i + 1, j1), ft * fp),
+        ]
+    }
+}
+
+/// One grid tree's warp proxy: per node, the first child (or [`WARP_LEAF`]) and its share of
+/// the tree's volume (f32). 8 bytes a node.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
+pub(crate) struct WarpNode {
+    pub(crate) link: u32,
+    pub(crate) q: f32,
+}
+
+/// Marks a warp leaf.
+pub(crate) const WARP_LEAF: u32 = u32::MAX;
+
+/// The warp proxy of one tree (see the module doc).
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct WarpTable {
+    pub(crate) nodes: Vec<WarpNode>,
+}
+
+/// Chooses part 0 or 1 with probabilities ∝ (a, b) using `u`, and rescales `u` to [0, 1)
+/// within the chosen part.
+#[inline]
+fn split(u: &mut f64, a: f64, b: f64) -> usize {
+    let pa = a / (a + b);
+    if *u < pa {
+        *u = (*u / pa).min(1.0 - f64::EPSILON);
+        0
+    } else {
+        *u = ((*u - pa) / (1.0 - pa)).clamp(0.0, 1.0 - f64::EPSILON);
+        1
+    }
+}
+
+impl WarpTable {
+    fn new(tree: &Quadtree) -> Self {
+        let v = tree.volume();
+        let nodes = tree
+            .nodes()
+            .iter()
+            .map(|n| WarpNode {
+                link: if n.is_leaf() {
+                    WARP_LEAF
+                } else {
+                    n.first_child
+                },
+                q: if v > 0.0 { (n.v1 / v) as f32 } else { 0.0 },
+            })
+            .collect();
+        Self { nodes }
+    }
+
+    /// Rebuilds a table from raw nodes, checking its shape (children after parents, in
+    /// range, one parent each) and that every share is finite and ≥ 0.
+    pub(crate) fn from_raw(nodes: Vec<WarpNode>) -> Result<Self, &'static str> {
+        let n = nodes.len();
+        if n == 0 {
+            return Err("a warp table with no nodes");
+        }
+        let mut seen = alloc::vec![false; n];
+        for (i, w) in nodes.iter().enumerate() {
+            if !(w.q.is_finite() && w.q >= 0.0) {
+                return Err("a warp share that is negative or not finite");
+            }
+            if w.link != WARP_LEAF {
+                let c = w.link as usize;
+                if c <= i || c.checked_add(4).is_none_or(|e| e > n) {
+                    return Err("a warp node whose children are out of order or range");
+                }
+                for s in &mut seen[c..c + 4] {
+                    if *s {
+                        return Err("a warp node with two parents");
+                    }
+                    *s = true;
+                }
+            }
+        }
+        if seen[0] || seen[1..].iter().any(|&s| !s) {
+            return Err("warp nodes that are not one tree");
+        }
+        Ok(Self { nodes })
+    }
+
+    /// The four children's shares of node `i` (in f64) and their sum.
+    #[inline]
+    fn shares(&self, c: usize) -> ([f64; 4], f64) {
+        let q = [0, 1, 2, 3].map(|k| f64::from(self.nodes[c + k].q));
+        (q, q[0] + q[1] + q[2] + q[3])
+    }
+
+    /// Hierarchical warping: [0,1)² → a square point and the proxy's density there, per
+    /// unit square area. Column then row of the children by rescaling u.x then u.y, so the
+    /// probability of child k is q_k / Σq, the same product [`WarpTable::density`] forms.
+    fn warp(&self, u: DVec2) -> Option<(DVec2, f64)> {
+        let mut u = u.clamp(DVec2::ZERO, DVec2::splat(1.0 - f64::EPSILON));
+        let (mut i, mut min, mut size, mut prob) = (0usize, DVec2::splat(-1.0), 2.0f64, 1.0f64);
+        if self.nodes[0].q <= 0.0 {
+            return None;
+        }
+        while self.nodes[i].link != WARP_LEAF {
+            let c = self.nodes[i].link as usize;
+            let (q, total) = self.shares(c);
+            if total <= 0.0 {
+                return None;
+            }
+            let col = split(&mut u.x, q[0] + q[2], q[1] + q[3]);
+            let row = split(&mut u.y, q[col], q[col + 2]);
+            let k = col + 2 * row;
+            prob *= q[k] / total;
+            size *= 0.5;
+            min += DVec2::new((k & 1) as f64, (k >> 1) as f64) * size;
+            i = c + k;
+        }
+        (prob > 0.0).then(|| (min + u * size, prob / (size * size)))
+    }
+
+    /// The proxy's density at square point `p`, per unit square area (0 outside the square
+    /// or where no volume is).
+    fn density(&self, p: DVec2) -> f64 {
+        if !(p.x >= -1.0 && p.x <= 1.0 && p.y >= -1.0 && p.y <= 1.0) || self.nodes[0].q <= 0.0 {
+            return 0.0;
+        }
+        let (mut i, mut min, mut size, mut prob) = (0usize, DVec2::splat(-1.0), 2.0f64, 1.0f64);
+        while self.nodes[i].link != WARP_LEAF {
+            let c = self.nodes[i].link as usize;
+            let (q, total) = self.shares(c);
+            if total <= 0.0 {
+                return 0.0;
+            }
+            size *= 0.5;
+            let col = usize::from(p.x >= min.x + size);
+            let row = usize::from(p.y >= min.y + size);
+            let k = col + 2 * row;
+            prob *= q[k] / total;
+            min += DVec2::new(col as f64, row as f64) * size;
+            i = c + k;
+        }
+        prob / (size * size)
+    }
+}
+
+/// One grid tree: its direction, rejection layout and warp proxy.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Slice {
+    /// The incident direction the tree was built for (unit f32, as the tree saw it).
+    pub(crate) wi: Vec3,
+    pub(crate) tree: PackedTree,
+    pub(crate) warp: WarpTable,
+}
+
+impl Slice {
+    fn build(table: &dyn Brdf, wi: Vec3, config: BuildConfig) -> Result<Self, BuildError> {
+        let q = Quadtree::from_unit(table, wi, config)?;
+        Ok(Self {
+            wi,
+            tree: PackedTree::new(&q),
+            warp: WarpTable::new(&q),
+        })
+    }
+
+    fn bytes(&self) -> usize {
+        self.tree.nodes().len() * core::mem::size_of::<crate::PackedNode>()
+            + self.warp.nodes.len() * core::mem::size_of::<WarpNode>()
+            + core::mem::size_of::<Self>()
+    }
+}
+
+/// f*(a, b) = f_r(b, a): the model a non-reciprocal material's [`Role::Radiance`] trees are
+/// built from.
+#[derive(Debug)]
+struct Adjoint<'a>(&'a dyn Brdf);
+
+impl Brdf for Adjoint<'_> {
+    fn name(&self) -> &'static str {
+        self.0.name()
+    }
+    fn params(&self) -> ParamSet {
+        self.0.params()
+    }
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Vec3 {
+        self.0.eval(wo, wi)
+    }
+    fn peak_hints(&self, wi: Vec3) -> PeakHints {
+        self.0.peak_hints(wi)
+    }
+    fn symmetry(&self) -> Symmetry {
+        Symmetry {
+            reciprocal: false,
+            ..self.0.symmetry()
+        }
+    }
+}
+
+/// The trees of one transport direction.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Tables {
+    pub(crate) slices: Vec<Slice>,
+}
+
+/// A model's sampler at every incident direction, baked once (see the module doc): exact
+/// pdf at any (wi, wo), both transport roles, rejection or warp mode. Owns its model, is
+/// `Send + Sync + 'static`: share one per material across threads.
+///
+/// ```
+/// use brdf_core::registry;
+/// use quadtree_sampler::{BakeConfig, BakedSampler};
+/// use glam::{Vec2, Vec3};
+/// use rand_core::SeedableRng;
+///
+/// let phong = registry::create("phong", ["n=300"]).unwrap();
+/// let config = BakeConfig { theta_steps: 8, ..BakeConfig::default() };
+/// let baked = BakedSampler::new(phong.into(), config).unwrap();
+/// let wi = Vec3::new(0.31, 0.2, 0.93).normalize(); // any wi, on the grid or not
+/// let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+/// let s = baked.sample(wi, 0.3, Vec2::new(0.6, 0.2), &mut rng).unwrap().expect("a direction");
+/// assert!((s.pdf - baked.pdf(wi, s.wo).unwrap()).abs() <= 1e-5 * s.pdf);
+/// ```
+#[derive(Debug)]
+pub struct BakedSampler {
+    brdf: Arc<dyn Brdf>,
+    config: BakeConfig,
+    grid: BakeGrid,
+    forward: Tables,
+    /// The adjoint's trees, for a non-reciprocal model's [`Role::Radiance`].
+    adjoint: Option<Tables>,
+    mode: BakedMode,
+    violations: AtomicU64,
+    gave_up: AtomicU64,
+}
+
+/// One neighbour of a query: its tree, weight, and the map from its tree's frame to the
+/// caller's local frame (unfold ∘ rotation onto the query's mirror direction).
+#[derive(Clone, Copy, Debug)]
+struct Component {
+    slice: usize,
+    weight: f64,
+    to_local: DMat3,
+}
+
+impl BakedSampler {
+    /// Bakes `brdf` (any model with a continuous part): a tree per grid direction, built in
+    /// parallel with rayon when the `rayon` feature is on and `config.build.parallel` is set
+    /// (bit-identical to the serial bake).
+    pub fn new(brdf: Arc<dyn Brdf>, config: BakeConfig) -> Result<Self, BakeError> {
+        Self::new_with_progress(brdf, config, &|_, _| {})
+    }
+
+    /// [`BakedSampler::new`], calling `progress(done, total)` as trees finish (from any
+    /// thread, in any order).
+    pub fn new_with_progress(
+        brdf: Arc<dyn Brdf>,
+        config: BakeConfig,
+        progress: &(dyn Fn(usize, usize) + Sync),
+    ) -> Result<Self, BakeError> {
+        if !(config.defensive > 0.0 && config.defensive < 1.0) {
+            return Err(BakeError::Defensive(config.defensive));
+        }
+        if brdf.is_delta() {
+            return Err(BakeError::DeltaModel(brdf.name()));
+        }
+        config.build.validate().map_err(|source| BakeError::Tree {
+            theta_deg: 0.0,
+            phi_deg: 0.0,
+            source,
+        })?;
+        let symmetry = brdf.symmetry();
+        let grid = BakeGrid::new(symmetry, config.theta_steps, config.phi_steps)?;
+        let adjoint_model = Adjoint(&*brdf);
+        let mut jobs: Vec<(bool, usize)> = (0..grid.len()).map(|k| (false, k)).collect();
+        if !symmetry.reciprocal {
+            jobs.extend((0..grid.len()).map(|k| (true, k)));
+        }
+        let total = jobs.len();
+        let done = AtomicU64::new(0);
+        let build = |&(adj, k): &(bool, usize)| {
+            let table: &dyn Brdf = if adj { &adjoint_model } else { &*brdf };
+            let r = Slice::build(table, grid.direction(k), config.build).map_err(|source| {
+                let (theta_deg, phi_deg) = grid.angles_deg(k);
+                BakeError::Tree {
+                    theta_deg,
+                    phi_deg,
+                    source,
+                }
+            });
+            let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+            progress(d as usize, total);
+            r
+        };
+        #[cfg(feature = "rayon")]
+        let slices: Vec<Result<Slice, BakeError>> = if config.build.parallel {
+            use rayon::prelude::*;
+            jobs.par_iter().map(build).collect()
+        } else {
+            jobs.iter().map(build).collect()
+        };
+        #[cfg(not(feature = "rayon"))]
+        let slices: Vec<Result<Slice, BakeError>> = jobs.iter().map(build).collect();
+        let mut slices = slices.into_iter().collect::<Result<Vec<_>, _>>()?;
+        let adjoint = (!symmetry.reciprocal).then(|| Tables {
+            slices: slices.split_off(grid.len()),
+        });
+        Ok(Self::from_parts(
+            brdf,
+            config,
+            grid,
+            Tables { slices },
+            adjoint,
+        ))
+    }
+
+    pub(crate) fn from_parts(
+        brdf: Arc<dyn Brdf>,
+        config: BakeConfig,
+        grid: BakeGrid,
+        forward: Tables,
+        adjoint: Option<Tables>,
+    ) -> Self {
+        Self {
+            brdf,
+            config,
+            grid,
+            forward,
+            adjoint,
+            mode: BakedMode::default(),
+            violations: AtomicU64::new(0),
+            gave_up: AtomicU64::new(0),
+        }
+    }
+
+    pub(crate) fn tables(&self) -> (&Tables, Option<&Tables>) {
+        (&self.forward, self.adjoint.as_ref())
+    }
+
+    /// The same sampler in another mode (the tables serve both).
+    #[must_use]
+    pub fn with_mode(mut self, mode: BakedMode) -> Self {
+        self.mode = mode;
+        self
+    }
+
+    /// Switches the mode in place.
+    pub fn set_mode(&mut self, mode: BakedMode) {
+        self.mode = mode;
+    }
+
+    /// The mode `sample` uses.
+    #[must_use]
+    pub fn mode(&self) -> BakedMode {
+        self.mode
+    }
+
+    /// The model.
+    #[must_use]
+    pub fn brdf(&self) -> &Arc<dyn Brdf> {
+        &self.brdf
+    }
+
+    /// The bake's options.
+    #[must_use]
+    pub fn config(&self) -> &BakeConfig {
+        &self.config
+    }
+
+    /// The grid of incident directions.
+    #[must_use]
+    pub fn grid(&self) -> &BakeGrid {
+        &self.grid
+    }
+
+    /// Number of trees (twice the grid for a non-reciprocal model: its adjoint's too).
+    #[must_use]
+    pub fn trees(&self) -> usize {
+        self.forward.slices.len() + self.adjoint.as_ref().map_or(0, |t| t.slices.len())
+    }
+
+    /// Nodes over all trees.
+    #[must_use]
+    pub fn nodes(&self) -> usize {
+        self.all_slices().map(|s| s.tree.nodes().len()).sum()
+    }
+
+    /// Bytes held: both layouts of every tree and their headers.
+    #[must_use]
+    pub fn bytes(&self) -> usize {
+        self.all_slices().map(Slice::bytes).sum::<usize>() + core::mem::size_of::<Self>()
+    }
+
+    /// E\[T\] of each forward grid tree (row-major, as [`BakeGrid::direction`]).
+    #[must_use]
+    pub fn expected_trials(&self) -> Vec<f64> {
+        self.forward
+            .slices
+            .iter()
+            .map(|s| s.tree.stats().expected_trials)
+            .collect()
+    }
+
+    fn all_slices(&self) -> impl Iterator<Item = &Slice> {
+        self.forward
+            .slices
+            .iter()
+            .chain(self.adjoint.iter().flat_map(|t| t.slices.iter()))
+    }
+
+    /// How many rejection trials met f > M (should stay 0).
+    #[must_use]
+    pub fn bound_violations(&self) -> u64 {
+        self.violations.load(Ordering::Relaxed)
+    }
+
+    /// How many rejection samples gave up after [`crate::MAX_TRIALS`] trials.
+    #[must_use]
+    pub fn gave_up(&self) -> u64 {
+        self.gave_up.load(Ordering::Relaxed)
+    }
+
+    fn tables_for(&self, role: Role) -> (&Tables, bool) {
+        match (role, &self.adjoint) {
+            (Role::Radiance, Some(adj)) => (adj, true),
+            _ => (&self.forward, false),
+        }
+    }
+
+    /// f of a grid tree's model at (its wi, w): the model, or its adjoint.
+    #[inline]
+    fn table_eval(&self, adjoint: bool, wi: Vec3, w: Vec3) -> Vec3 {
+        if adjoint {
+            self.brdf.eval(w, wi)
+        } else {
+            self.brdf.eval(wi, w)
+        }
+    }
+
+    /// The components of the mixture at a given (checked, unit) direction.
+    fn components(&self, tables: &Tables, given: Vec3) -> ([Component; 4], usize) {
+        let g = given.as_dvec3();
+        let fold = self.grid.domain.fold(g);
+        let gc = fold * g;
+        let mc = DVec3::new(-gc.x, -gc.y, gc.z);
+        let unfold = fold.transpose();
+        let mut out = [Component {
+            slice: 0,
+            weight: 0.0,
+            to_local: DMat3::IDENTITY,
+        }; 4];
+        let mut n = 0;
+        let mut sum = 0.0;
+        for (slice, w) in self.grid.neighbours(gc) {
+            if w <= 0.0 || tables.slices[slice].tree.volume() <= 0.0 {
+                continue;
+            }
+            if let Some(c) = out[..n].iter_mut().find(|c| c.slice == slice) {
+                c.weight += w;
+                sum += w;
+                continue;
+            }
+            let wk = tables.slices[slice].wi.as_dvec3();
+            let mk = DVec3::new(-wk.x, -wk.y, wk.z).normalize();
+            let rot = DMat3::from_quat(DQuat::from_rotation_arc(mk, mc.normalize()));
+            out[n] = Component {
+                slice,
+                weight: w,
+                to_local: unfold * rot,
+            };
+            n += 1;
+            sum += w;
+        }
+        for c in &mut out[..n] {
+            c.weight /= sum;
+        }
+        (out, n)
+    }
+
+    /// Component `c`'s density at local `wo`, per unit solid angle.
+    fn component_pdf(&self, tables: &Tables, adjoint: bool, c: &Component, wo: DVec3) -> f64 {
+        let w = c.to_local.transpose() * wo;
+        if w.z <= 0.0 {
+            return 0.0;
+        }
+        let s = &tables.slices[c.slice];
+        let map = s.tree.map();
+        let j = f64::from(map.square_area_per_projected_solid_angle());
+        let wf = w.as_vec3();
+        match self.mode {
+            BakedMode::Rejection => {
+                let y = f64::from(luminance(self.table_eval(adjoint, s.wi, wf)));
+                y * w.z * j / s.tree.volume()
+            }
+            BakedMode::Warp => {
+                let p = map.direction_to_square(wf).as_dvec2();
+                s.warp.density(p) * j * w.z
+            }
+        }
+    }
+
+    /// The density of [`BakedSampler::sample_continuous_as`] at a checked pair.
+    fn pdf_unit(&self, role: Role, given: Vec3, sampled: Vec3) -> f32 {
+        if !above_horizon(sampled) {
+            return 0.0;
+        }
+        let (tables, adjoint) = self.tables_for(role);
+        let (comps, n) = self.components(tables, given);
+        let delta = if n == 0 { 1.0 } else { self.config.defensive };
+        let wo = sampled.as_dvec3();
+        let mut p = delta * f64::from(cosine_hemisphere_pdf(sampled.z));
+        for c in &comps[..n] {
+            p += (1.0 - delta) * c.weight * self.component_pdf(tables, adjoint, c, wo);
+        }
+        p as f32
+    }
+
+    /// f_r for a role: (given, sampled) are (wi, wo) for [`Role::Importance`] and (wo, wi)
+    /// for [`Role::Radiance`].
+    #[inline]
+    fn eval_unit(&self, role: Role, given: Vec3, sampled: Vec3) -> Vec3 {
+        match role {
+            Role::Importance => self.brdf.eval(given, sampled),
+            Role::Radiance => self.brdf.eval(sampled, given),
+        }
+    }
+
+    /// Draws the sampled direction of the continuous part for a role, given the other one
+    /// (local frame, checked: finite, non-zero, above the horizon). `uc` chooses the
+    /// defensive part or a neighbour tree, `u` drives the tree (rejection: its descent, with
+    /// u.y refining u.x; warp: the whole warp), `rng` draws the rejection trials (warp mode
+    /// draws nothing from it). `Ok(None)` when the drawn direction carries nothing (rotated
+    /// below the horizon, or the rejection loop gave up): the estimator scores 0. The
+    /// sample's `pdf` is [`BakedSampler::pdf_continuous_as`] at the returned direction, **per
+    /// unit solid angle**; `f` is f_r (the role's argument order), `weight` = f·cos/pdf.
+    pub fn sample_continuous_as<R: Rng + ?Sized>(
+        &self,
+        role: Role,
+        given: Vec3,
+        uc: f32,
+        u: Vec2,
+        rng: &mut R,
+    ) -> Result<Option<Sample>, BakedError> {
+        let given = brdf_core::geometry::unit_direction_above(given)?;
+        Ok(self.sample_unit(role, given, uc, u, rng))
+    }
+
+    fn sample_unit<R: Rng + ?Sized>(
+        &self,
+        role: Role,
+        given: Vec3,
+        uc: f32,
+        u: Vec2,
+        rng: &mut R,
+    ) -> Option<Sample> {
+        let (tables, adjoint) = self.tables_for(role);
+        let (comps, n) = self.components(tables, given);
+        let delta = if n == 0 { 1.0 } else { self.config.defensive };
+        let uc = f64::from(uc.clamp(0.0, 1.0));
+        let mut trials = 1;
+        let wo = if uc < delta || n == 0 {
+            sample_cosine_hemisphere(u)
+        } else {
+            let mut x = (uc - delta) / (1.0 - delta);
+            let mut pick = &comps[n - 1];
+            for c in &comps[..n] {
+                if x < c.weight {
+                    pick = c;
+                    break;
+                }
+                x -= c.weight;
+            }
+            let s = &tables.slices[pick.slice];
+            let w = match self.mode {
+                BakedMode::Rejection => {
+                    // 48 bits for the descent: u.x, refined by u.y below its last bit.
+                    let d = f64::from(u.x) + f64::from(u.y) * (1.0 / 16_777_216.0);
+                    let leaf = s.tree.select(d.min(1.0 - f64::EPSILON));
+                    let Some((_, w, _, t)) = rejection_in_leaf(
+                        &s.tree,
+                        &leaf,
+                        |w| self.table_eval(adjoint, s.wi, w),
+                        rng,
+                        &self.violations,
+                    ) else {
+                        self.gave_up.fetch_add(1, Ordering::Relaxed);
+                        return None;
+                    };
+                    trials = t;
+                    w.as_dvec3()
+                }
+                BakedMode::Warp => {
+                    let (p, _) = s.warp.warp(u.as_dvec2())?;
+                    square_direction(s.tree.map(), p)?
+                }
+            };
+            (pick.to_local * w).as_vec3().normalize_or_zero()
+        };
+        if !above_horizon(wo) {
+            return None;
+        }
+        let pdf = self.pdf_unit(role, given, wo);
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
+        let f = self.eval_unit(role, given, wo);
+        Some(Sample {
+            wo,
+            pdf,
+            f,
+            weight: f * (wo.z / pdf),
+            delta: false,
+            trials,
+        })
+    }
+
+    /// The density of [`BakedSampler::sample_continuous_as`]: of `sampled` given `given`,
+    /// **per unit solid angle** (0 for `sampled` below the horizon).
+    pub fn pdf_continuous_as(
+        &self,
+        role: Role,
+        given: Vec3,
+        sampled: Vec3,
+    ) -> Result<f32, BakedError> {
+        let given = brdf_core::geometry::unit_direction_above(given)?;
+        let sampled = brdf_core::geometry::unit_direction(sampled)?;
+        Ok(self.pdf_unit(role, given, sampled))
+    }
+
+    /// The whole model for a role: with the model's delta probability (at the given
+    /// direction) its Dirac lobe toward the mirror direction (a delta sample), otherwise the
+    /// continuous part with `uc` rescaled, its pdf scaled by the probability of having chosen
+    /// it. See [`BakedSampler::sample_continuous_as`].
+    pub fn sample_as<R: Rng + ?Sized>(
+        &self,
+        role: Role,
+        given: Vec3,
+        uc: f32,
+        u: Vec2,
+        rng: &mut R,
+    ) -> Result<Option<Sample>, BakedError> {
+        let given = brdf_core::geometry::unit_direction_above(given)?;
+        let p = self.brdf.delta_probability(given);
+        if p <= 0.0 {
+            return Ok(self.sample_unit(role, given, uc, u, rng));
+        }
+        if uc < p {
+            return Ok(
+                BrdfSample::delta(mirror(given), self.brdf.delta_reflectance(given), p)
+                    .map(Sample::from),
+            );
+        }
+        let uc = ((uc - p) / (1.0 - p)).min(1.0 - f32::EPSILON / 2.0);
+        Ok(self.sample_unit(role, given, uc, u, rng).map(|s| {
+            let pdf = s.pdf * (1.0 - p);
+            Sample {
+                pdf,
+                weight: s.f * (s.wo.z / pdf),
+                ..s
+            }
+        }))
+    }
+
+    /// The density with which [`BakedSampler::sample_as`] draws `sampled` as a continuous
+    /// sample, **per unit solid angle**: (1 − delta probability) × the continuous pdf.
+    pub fn pdf_as(&self, role: Role, given: Vec3, sampled: Vec3) -> Result<f32, BakedError> {
+        let given = brdf_core::geometry::unit_direction_above(given)?;
+        let sampled = brdf_core::geometry::unit_direction(sampled)?;
+        let p = self.brdf.delta_probability(given);
+        Ok((1.0 - p) * self.pdf_unit(role, given, sampled))
+    }
+
+    /// f_r for a role (continuous part, RGB, 1/sr, no cosine): f_r(given, sampled) for
+    /// [`Role::Importance`], f_r(sampled, given) for [`Role::Radiance`].
+    pub fn eval_as(&self, role: Role, given: Vec3, sampled: Vec3) -> Result<Vec3, BakedError> {
+        let given = brdf_core::geometry::unit_direction(given)?;
+        let sampled = brdf_core::geometry::unit_direction(sampled)?;
+        Ok(self.eval_unit(role, given, sampled))
+    }
+
+    /// f_r and the pdf of `sampled` in one call (what MIS needs at a light sample).
+    pub fn eval_pdf_as(
+        &self,
+        role: Role,
+        given: Vec3,
+        sampled: Vec3,
+    ) -> Result<(Vec3, f32), BakedError> {
+        Ok((
+            self.eval_as(role, given, sampled)?,
+            self.pdf_as(role, given, sampled)?,
+        ))
+    }
+
+    /// [`BakedSampler::sample_as`] for SPEC §1's convention: `wo` given `wi`.
+    pub fn sample<R: Rng + ?Sized>(
+        &self,
+        wi: Vec3,
+        uc: f32,
+        u: Vec2,
+        rng: &mut R,
+    ) -> Result<Option<Sample>, BakedError> {
+        self.sample_as(Role::Importance, wi, uc, u, rng)
+    }
+
+    /// [`BakedSampler::pdf_as`] of `wo` given `wi`, **per unit solid angle**.
+    pub fn pdf(&self, wi: Vec3, wo: Vec3) -> Result<f32, BakedError> {
+        self.pdf_as(Role::Importance, wi, wo)
+    }
+
+    /// f_r(wi, wo), the model's continuous part (RGB, 1/sr).
+    pub fn eval(&self, wi: Vec3, wo: Vec3) -> Result<Vec3, BakedError> {
+        self.eval_as(Role::Importance, wi, wo)
+    }
+
+    /// [`BakedSampler::sample_continuous_as`] for `wo` given `wi` (the delta lobe left out:
+    /// what `brdf sample --baked` records).
+    pub fn sample_continuous<R: Rng + ?Sized>(
+        &self,
+        wi: Vec3,
+        uc: f32,
+        u: Vec2,
+        rng: &mut R,
+    ) -> Result<Option<Sample>, BakedError> {
+        self.sample_continuous_as(Role::Importance, wi, uc, u, rng)
+    }
+
+    /// [`BakedSampler::pdf_continuous_as`] of `wo` given `wi`, **per unit solid angle**.
+    pub fn pdf_continuous(&self, wi: Vec3, wo: Vec3) -> Result<f32, BakedError> {
+        self.pdf_continuous_as(Role::Importance, wi, wo)
+    }
+
+    /// A [`crate::DirectionSampler`] of the continuous part at one fixed `wi` (for the
+    /// validation harness and the CLI): draws uc, u and the trials from the RNG.
+    pub fn at(&self, wi: Vec3) -> Result<BakedAt<'_>, BakedError> {
+        Ok(BakedAt {
+            baked: self,
+            wi: brdf_core::geometry::unit_direction_above(wi)?,
+        })
+    }
+
+    /// Test-only: drops neighbour `k`'s weight from the reported pdf while still sampling
+    /// it (a negative control a validation must reject). Not for production.
+    #[doc(hidden)]
+    #[must_use]
+    pub fn broken_pdf_for_testing(self: Arc<Self>) -> BrokenPdf {
+        BrokenPdf(self)
+    }
+}
+
+/// A [`BakedSampler`] at one incident direction, as a [`crate::DirectionSampler`].
+#[derive(Clone, Copy, Debug)]
+pub struct BakedAt<'a> {
+    baked: &'a BakedSampler,
+    wi: Vec3,
+}
+
+impl crate::DirectionSampler for BakedAt<'_> {
+    fn name(&self) -> &'static str {
+        match self.baked.mode {
+            BakedMode::Rejection => "baked rejection",
+            BakedMode::Warp => "baked warp",
+        }
+    }
+
+    fn sample(&self, rng: &mut dyn Rng) -> Option<Sample> {
+        let uc = crate::uniform_f32(rng);
+        let u = Vec2::new(crate::uniform_f32(rng), crate::uniform_f32(rng));
+        self.baked
+            .sample_unit(Role::Importance, self.wi, uc, u, rng)
+    }
+
+    fn pdf(&self, wo: Vec3) -> f32 {
+        if !wo.is_finite() || wo.length_squared() == 0.0 {
+            return 0.0;
+        }
+        self.baked
+            .pdf_unit(Role::Importance, self.wi, wo.normalize())
+    }
+}
+
+/// A deliberately wrong sampler for negative controls: samples like its [`BakedSampler`]
+/// but reports a pdf that leaves out the first neighbour's share (renormalised over the
+/// others), as a mixture bug would.
+#[doc(hidden)]
+#[derive(Debug)]
+pub struct BrokenPdf(Arc<BakedSampler>);
+
+impl BrokenPdf {
+    /// The wrong pdf at one wi.
+    #[must_use]
+    pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        let b = &self.0;
+        let (comps, n) = b.components(&b.forward, wi);
+        if n < 2 || !above_horizon(wo) {
+            return b.pdf_unit(Role::Importance, wi, wo);
+        }
+        let rest: f64 = comps[1..n].iter().map(|c| c.weight).sum();
+        let delta = b.config.defensive;
+        let mut p = delta * f64::from(cosine_hemisphere_pdf(wo.z));
+        for c in &comps[1..n] {
+            p += (1.0 - delta) * c.weight / rest
+                * b.component_pdf(&b.forward, false, c, wo.as_dvec3());
+        }
+        p as f32
+    }
+
+    /// The sampler at one wi with the wrong pdf.
+    #[must_use]
+    pub fn at(&self, wi: Vec3) -> BrokenAt<'_> {
+        BrokenAt {
+            broken: self,
+            wi: wi.normalize(),
+        }
+    }
+}
+
+/// [`BrokenPdf`] at one wi.
+#[doc(hidden)]
+#[derive(Debug)]
+pub struct BrokenAt<'a> {
+    broken: &'a BrokenPdf,
+    wi: Vec3,
+}
+
+impl crate::DirectionSampler for BrokenAt<'_> {
+    fn name(&self) -> &'static str {
+        "broken baked"
+    }
+
+    fn sample(&self, rng: &mut dyn Rng) -> Option<Sample> {
+        let uc = crate::uniform_f32(rng);
+        let u = Vec2::new(crate::uniform_f32(rng), crate::uniform_f32(rng));
+        let s = self
+            .broken
+            .0
+            .sample_unit(Role::Importance, self.wi, uc, u, rng)?;
+        let pdf = self.pdf(s.wo);
+        (pdf > 0.0).then(|| Sample {
+            pdf,
+            weight: s.f * (s.wo.z / pdf),
+            ..s
+        })
+    }
+
+    fn pdf(&self, wo: Vec3) -> f32 {
+        self.broken.pdf(self.wi, wo)
+    }
+}
+
+/// A [`BakedSampler`] in a world-space shading frame, like pbrt's `BSDF` around a `BxDF`:
+/// directions in and out are world vectors; the frame is a normal and an optional tangent
+/// (the anisotropy axis x). Cheap to make per shading point.
+#[derive(Clone, Copy, Debug)]
+pub struct WorldBsdf<'a> {
+    baked: &'a BakedSampler,
+    frame: brdf_core::Frame,
+}
+
+impl<'a> WorldBsdf<'a> {
+    /// A shading point with normal `n` and, for anisotropic models, tangent `t` (made
+    /// orthogonal to `n`); without a tangent any stable one is chosen.
+    pub fn new(baked: &'a BakedSampler, n: Vec3, t: Option<Vec3>) -> Result<Self, BakedError> {
+        let frame = match t {
+            Some(t) => brdf_core::Frame::from_normal_tangent(n, t)?,
+            None => brdf_core::Frame::from_normal(n)?,
+        };
+        Ok(Self { baked, frame })
+    }
+
+    /// The shading frame.
+    #[must_use]
+    pub fn frame(&self) -> &brdf_core::Frame {
+        &self.frame
+    }
+
+    /// [`BakedSampler::sample_as`] in world directions (the sample's `wo` is world too).
+    pub fn sample<R: Rng + ?Sized>(
+        &self,
+        role: Role,
+        given: Vec3,
+        uc: f32,
+        u: Vec2,
+        rng: &mut R,
+    ) -> Result<Option<Sample>, BakedError> {
+        let s = self
+            .baked
+            .sample_as(role, self.frame.to_local(given), uc, u, rng)?;
+        Ok(s.map(|s| Sample {
+            wo: self.frame.to_world(s.wo),
+            ..s
+        }))
+    }
+
+    /// [`BakedSampler::pdf_as`] in world directions, **per unit solid angle**.
+    pub fn pdf(&self, role: Role, given: Vec3, sampled: Vec3) -> Result<f32, BakedError> {
+        self.baked.pdf_as(
+            role,
+            self.frame.to_local(given),
+            self.frame.to_local(sampled),
+        )
+    }
+
+    /// [`BakedSampler::eval_as`] in world directions (0 below the surface).
+    pub fn eval(&self, role: Role, given: Vec3, sampled: Vec3) -> Result<Vec3, BakedError> {
+        self.baked.eval_as(
+            role,
+            self.frame.to_local(given),
+            self.frame.to_local(sampled),
+        )
+    }
+}
