@@ -61,6 +61,7 @@ use crate::tree::Quadtree;
 use alloc::sync::Arc;
 use alloc::vec::Vec;
 use brdf_core::geometry::{above_horizon, luminance, mirror};
+use brdf_core::math as m;
 use brdf_core::warp::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
 use brdf_core::{Brdf, BrdfSample, DirectionError, ParamSet, PeakHints, Symmetry};
 use core::f64::consts::{FRAC_PI_2, PI, TAU};
@@ -71,7 +72,12 @@ use rand_core::Rng;
 
 /// The polar angle of the grid's last row of trees, in degrees. A `wi` beyond it (up to the
 /// horizon) uses that row alone, rotated onto its mirror direction.
-pub const GRID_THETA_MAX_DEG: f64 = 89.5;
+pub const GRID_THETA_MAX_DEG: f64 = 89.0;
+
+/// The node budget of each grid tree in [`BakeConfig::default`] (2¹⁶: at most 1.5 MiB a
+/// tree in both layouts), so that no incident direction of the grid can take a bake's memory
+/// beyond trees × that.
+pub const DEFAULT_BAKE_NODE_BUDGET: u32 = 1 << 16;
 
 /// Default rows of trees in θi (from 0° to [`GRID_THETA_MAX_DEG`]), chosen by measurement
 /// (see `examples/bake_grid.rs` and the README's numbers).
@@ -80,8 +86,13 @@ pub const DEFAULT_THETA_STEPS: u16 = 32;
 /// Default columns of trees in φi over the folded φ range of an anisotropic model.
 pub const DEFAULT_PHI_STEPS: u16 = 9;
 
-/// Default defensive share δ of cosine sampling in the mixture.
-pub const DEFAULT_DEFENSIVE: f64 = 0.02;
+/// Default defensive share δ of cosine sampling in the mixture: 10⁻⁶. It only has to keep
+/// the density positive where no rotated neighbour reaches (beyond the last grid row, and
+/// in leaves a tree found empty), and every bit of it costs variance where the mixture is
+/// otherwise ∝ f·cos: a share δ of samples weighted ≈ 0 adds ≈ δ·ρ² to the variance of
+/// the weight, which for a glossy lobe under a smooth sky is the whole of the exact tree's
+/// variance at δ ≈ 10⁻⁵ (measured: `examples/bake_grid.rs`).
+pub const DEFAULT_DEFENSIVE: f64 = 1e-6;
 
 /// The most trees one bake may hold (a typed error beyond: a grid of 10⁶ trees is a typo).
 pub const MAX_TREES: usize = 1 << 16;
@@ -135,7 +146,10 @@ pub struct BakeConfig {
 impl Default for BakeConfig {
     fn default() -> Self {
         Self {
-            build: BuildConfig::default(),
+            build: BuildConfig {
+                node_budget: DEFAULT_BAKE_NODE_BUDGET,
+                ..BuildConfig::default()
+            },
             theta_steps: DEFAULT_THETA_STEPS,
             phi_steps: DEFAULT_PHI_STEPS,
             defensive: DEFAULT_DEFENSIVE,
@@ -177,10 +191,16 @@ impl fmt::Display for BakeError {
         match self {
             Self::ThetaSteps(n) => write!(f, "theta steps = {n}: at least 2 are needed"),
             Self::PhiSteps { got, min } => {
-                write!(f, "phi steps = {got}: this model's φ range needs at least {min}")
+                write!(
+                    f,
+                    "phi steps = {got}: this model's φ range needs at least {min}"
+                )
             }
             Self::TooManyTrees(n) => {
-                write!(f, "a grid of {n} trees is more than the {MAX_TREES} allowed")
+                write!(
+                    f,
+                    "a grid of {n} trees is more than the {MAX_TREES} allowed"
+                )
             }
             Self::Defensive(d) => write!(f, "defensive share = {d} must be in (0, 1)"),
             Self::DeltaModel(m) => write!(
@@ -273,7 +293,7 @@ impl PhiDomain {
                 if w.x == 0.0 && w.y == 0.0 {
                     DMat3::IDENTITY
                 } else {
-                    DMat3::from_rotation_z(-w.y.atan2(w.x))
+                    DMat3::from_rotation_z(-m::atan2(w.y, w.x))
                 }
             }
             Self::Quadrant => DMat3::from_diagonal(DVec3::new(sx, sy, 1.0)),
@@ -377,9 +397,12 @@ impl BakeGrid {
     /// unit f32 vector its tree was built for.
     #[must_use]
     pub fn direction(&self, k: usize) -> Vec3 {
-        let (t, p) = (self.thetas[k / self.phis.len()], self.phis[k % self.phis.len()]);
-        let (st, ct) = t.sin_cos();
-        let (sp, cp) = p.sin_cos();
+        let (t, p) = (
+            self.thetas[k / self.phis.len()],
+            self.phis[k % self.phis.len()],
+        );
+        let (st, ct) = (m::sin(t), m::cos(t));
+        let (sp, cp) = (m::sin(p), m::cos(p));
         DVec3::new(st * cp, st * sp, ct).as_vec3().normalize()
     }
 
@@ -395,30 +418,30 @@ impl BakeGrid {
     /// The neighbouring trees of a folded direction `w` (unit, z > 0) and their weights
     /// (summing to 1; linear in θ, bilinear in (θ, φ)); unused entries have weight 0.
     fn neighbours(&self, w: DVec3) -> [(usize, f64); 4] {
-        let theta = w.z.clamp(-1.0, 1.0).acos();
+        let theta = m::acos(w.z.clamp(-1.0, 1.0));
         let nt = self.thetas.len();
         let dt = self.thetas[1] - self.thetas[0];
         let t = (theta / dt).clamp(0.0, (nt - 1) as f64);
-        let i = (t.floor() as usize).min(nt - 2);
+        let i = (m::floor(t) as usize).min(nt - 2);
         let ft = (t - i as f64).clamp(0.0, 1.0);
         let np = self.phis.len();
         let (j0, j1, fp) = match self.domain {
             PhiDomain::Rotation => (0, 0, 0.0),
             PhiDomain::Circle => {
                 let dp = TAU / np as f64;
-                let mut phi = w.y.atan2(w.x);
+                let mut phi = m::atan2(w.y, w.x);
                 if phi < 0.0 {
                     phi += TAU;
                 }
                 let p = phi / dp;
-                let j = (p.floor() as usize).min(np - 1);
+                let j = (m::floor(p) as usize).min(np - 1);
                 (j, (j + 1) % np, (p - j as f64).clamp(0.0, 1.0))
             }
             _ => {
                 let (lo, hi) = self.domain.range();
-                let phi = w.y.atan2(w.x).clamp(lo, hi);
+                let phi = m::atan2(w.y, w.x).clamp(lo, hi);
                 let p = ((phi - lo) / (hi - lo) * (np - 1) as f64).clamp(0.0, (np - 1) as f64);
-                let j = (p.floor() as usize).min(np - 2);
+                let j = (m::floor(p) as usize).min(np - 2);
                 (j, j + 1, (p - j as f64).clamp(0.0, 1.0))
             }
         };
@@ -925,16 +948,19 @@ impl BakedSampler {
         }
     }
 
-    /// The density of [`BakedSampler::sample_continuous_as`] at a checked pair.
+    /// The density of [`BakedSampler::sample_continuous_as`] at a checked pair. `sampled`
+    /// need only be finite and non-zero: it is normalised here in f64, so that the pdf a
+    /// sample carries and the pdf of the same f32 vector asked for later are bit-identical
+    /// (renormalising in f32 could move a direction on a leaf's edge into its neighbour).
     fn pdf_unit(&self, role: Role, given: Vec3, sampled: Vec3) -> f32 {
-        if !above_horizon(sampled) {
+        let wo = sampled.as_dvec3().normalize_or_zero();
+        if !(wo.z > 0.0) {
             return 0.0;
         }
         let (tables, adjoint) = self.tables_for(role);
         let (comps, n) = self.components(tables, given);
         let delta = if n == 0 { 1.0 } else { self.config.defensive };
-        let wo = sampled.as_dvec3();
-        let mut p = delta * f64::from(cosine_hemisphere_pdf(sampled.z));
+        let mut p = delta * wo.z * core::f64::consts::FRAC_1_PI;
         for c in &comps[..n] {
             p += (1.0 - delta) * c.weight * self.component_pdf(tables, adjoint, c, wo);
         }
@@ -1049,7 +1075,7 @@ impl BakedSampler {
         sampled: Vec3,
     ) -> Result<f32, BakedError> {
         let given = brdf_core::geometry::unit_direction_above(given)?;
-        let sampled = brdf_core::geometry::unit_direction(sampled)?;
+        brdf_core::geometry::unit_direction(sampled)?;
         Ok(self.pdf_unit(role, given, sampled))
     }
 
@@ -1091,7 +1117,7 @@ impl BakedSampler {
     /// sample, **per unit solid angle**: (1 − delta probability) × the continuous pdf.
     pub fn pdf_as(&self, role: Role, given: Vec3, sampled: Vec3) -> Result<f32, BakedError> {
         let given = brdf_core::geometry::unit_direction_above(given)?;
-        let sampled = brdf_core::geometry::unit_direction(sampled)?;
+        brdf_core::geometry::unit_direction(sampled)?;
         let p = self.brdf.delta_probability(given);
         Ok((1.0 - p) * self.pdf_unit(role, given, sampled))
     }
@@ -1196,11 +1222,10 @@ impl crate::DirectionSampler for BakedAt<'_> {
     }
 
     fn pdf(&self, wo: Vec3) -> f32 {
-        if !wo.is_finite() || wo.length_squared() == 0.0 {
+        if !wo.is_finite() {
             return 0.0;
         }
-        self.baked
-            .pdf_unit(Role::Importance, self.wi, wo.normalize())
+        self.baked.pdf_unit(Role::Importance, self.wi, wo)
     }
 }
 

@@ -56,6 +56,7 @@ extern crate alloc;
 #[cfg(feature = "std")]
 extern crate std;
 
+mod bake_file;
 mod baked;
 pub mod chart;
 pub mod colormap;
@@ -69,10 +70,13 @@ mod tree;
 pub mod validate;
 mod warp;
 
+pub use bake_file::{BAKE_FORMAT_VERSION, BAKE_MAGIC, BakeFileError};
+#[cfg(feature = "std")]
+pub use bake_file::{BakeIoError, write_atomically};
 pub use baked::{
-    BakeConfig, BakeError, BakeGrid, BakedAt, BakedError, BakedMode, BakedSampler, BrokenAt, BrokenPdf,
-    DEFAULT_DEFENSIVE, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, GRID_THETA_MAX_DEG, MAX_TREES,
-    PhiDomain, Role, WorldBsdf,
+    BakeConfig, BakeError, BakeGrid, BakedAt, BakedError, BakedMode, BakedSampler, BrokenAt,
+    BrokenPdf, DEFAULT_BAKE_NODE_BUDGET, DEFAULT_DEFENSIVE, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS,
+    GRID_THETA_MAX_DEG, MAX_TREES, PhiDomain, Role, WorldBsdf,
 };
 pub use brdf_core;
 pub use config::{BuildConfig, IntegrationRule};

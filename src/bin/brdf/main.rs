@@ -1,6 +1,7 @@
 //! `brdf`: the command line of SPEC §6, a stable contract that other tools script against.
 //! Errors go to stderr with exit status 2; a statistical test that rejects exits 1.
 
+mod bake;
 mod bench;
 mod eval;
 mod images;
@@ -41,7 +42,7 @@ enum Command {
     /// the horizon is written as four zeros) to --out, and a JSON summary to stdout.
     Sample {
         #[command(flatten)]
-        model: ModelArgs,
+        model: OptModelArgs,
         #[command(flatten)]
         sampler: sample::SamplerArgs,
         /// Number of samples.
@@ -58,7 +59,7 @@ enum Command {
     /// one pdf per line.
     Pdf {
         #[command(flatten)]
-        model: ModelArgs,
+        model: OptModelArgs,
         #[command(flatten)]
         sampler: sample::SamplerArgs,
     },
@@ -72,9 +73,17 @@ enum Command {
     /// The validation of SPEC §5 for any sampler: histogram --samples directions over a cell
     /// grid and compare with ∫f·cos per cell (the seed's a_i spread, Pearson χ²) and with the
     /// sampler's own pdf. Prints a table; exits 1 when any test rejects.
-    Test {
+    /// Bakes a model's sampler for every incident direction into a file (SPEC §7) and prints
+    /// one JSON object: trees, nodes, bytes, build_seconds, grid.
+    Bake {
         #[command(flatten)]
         model: ModelArgs,
+        #[command(flatten)]
+        bake: bake::BakeArgs,
+    },
+    Test {
+        #[command(flatten)]
+        model: OptModelArgs,
         #[command(flatten)]
         test: test::TestArgs,
     },
@@ -89,6 +98,32 @@ struct ModelArgs {
     /// A parameter as name=value (RGB: one value or r,g,b); repeat for several.
     #[arg(long = "param", value_name = "NAME=VALUE")]
     params: Vec<String>,
+}
+
+/// `--model` and `--param` where `--baked FILE` may stand instead (the bake names its model).
+#[derive(Debug, clap::Args)]
+struct OptModelArgs {
+    /// The model (MODELS.md name); not needed with --baked.
+    #[arg(long, required_unless_present = "baked")]
+    model: Option<String>,
+    /// A parameter NAME=VALUE (repeat for several).
+    #[arg(long = "param", value_name = "NAME=VALUE")]
+    params: Vec<String>,
+}
+
+impl OptModelArgs {
+    /// The model: the bake's when `--baked` is given (checked against --model if both are),
+    /// else the one `--model` names.
+    fn resolve(
+        &self,
+        options: &mut sample::SamplerOptions,
+    ) -> Result<std::sync::Arc<dyn brdf_sampling::Brdf>, CliError> {
+        if let Some(b) = sample::load_baked(options, self.model.as_deref(), &self.params)? {
+            return Ok(b);
+        }
+        let name = self.model.as_deref().unwrap_or_default();
+        Ok(brdf_sampling::registry::create(name, self.params.iter().map(String::as_str))?.into())
+    }
 }
 
 impl ModelArgs {
@@ -153,21 +188,25 @@ fn run(cli: Cli) -> Result<Outcome, CliError> {
         }
         Command::Sample {
             model,
-            sampler,
+            mut sampler,
             count,
             seed,
             out,
         } => {
-            let brdf = model.build()?;
+            let brdf = model.resolve(&mut sampler.options)?;
             sample::run_sample(&*brdf, &sampler, count, seed, &out, stdout)
         }
-        Command::Pdf { model, sampler } => {
-            let brdf = model.build()?;
+        Command::Pdf { model, mut sampler } => {
+            let brdf = model.resolve(&mut sampler.options)?;
             sample::run_pdf(&*brdf, &sampler, std::io::stdin().lock(), stdout)
         }
-        Command::Bench { bench } => bench::run(&bench, stdout),
-        Command::Test { model, test } => {
+        Command::Bake { model, bake } => {
             let brdf = model.build()?;
+            bake::run(brdf.into(), &bake, stdout)
+        }
+        Command::Bench { bench } => bench::run(&bench, stdout),
+        Command::Test { model, mut test } => {
+            let brdf = model.resolve(test.options_mut())?;
             let passed = test::run(&*brdf, &model.params, &test, stdout)?;
             return Ok(if passed {
                 Outcome::Passed

@@ -4,13 +4,15 @@ use crate::CliError;
 use brdf_sampling::geometry::{unit_direction, unit_direction_above};
 use brdf_sampling::glam::Vec3;
 use brdf_sampling::quadtree_sampler::{
-    Baseline, BaselineSampler, BuildConfig, DEFAULT_MIX, DEFAULT_TABLE_RES, DirectionSampler,
-    QuadtreeSampler, TableSampler, TreeStats, WarpSampler,
+    BakedMode, BakedSampler, Baseline, BaselineSampler, BuildConfig, DEFAULT_MIX,
+    DEFAULT_TABLE_RES, DirectionSampler, QuadtreeSampler, TableSampler, TreeStats, WarpSampler,
 };
 use brdf_sampling::{Brdf, DiskMap};
 use rand_core::SeedableRng;
 use serde_json::{Value, json};
 use std::io::{BufRead, BufWriter, Write};
+use std::sync::Arc;
+
 use std::time::Instant;
 
 /// Which sampler (`--mode`).
@@ -47,7 +49,7 @@ pub(crate) struct SamplerArgs {
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     wi: String,
     #[command(flatten)]
-    options: SamplerOptions,
+    pub(crate) options: SamplerOptions,
 }
 
 /// The sampler options shared by `sample`, `pdf` and `test`.
@@ -62,6 +64,78 @@ pub(crate) struct SamplerOptions {
     /// Refine the quadtree until the expected trials per sample are at most this (rejection).
     #[arg(long, value_name = "T")]
     pub(crate) target_trials: Option<f64>,
+    /// Sample a baked sampler (a file of `brdf bake`) instead of building a tree for wi
+    /// (SPEC §7); `--mode` is then `rejection` or `warp`, and `--model` may be left out.
+    #[arg(long, value_name = "FILE")]
+    pub(crate) baked: Option<std::path::PathBuf>,
+    /// The loaded bake (filled in by `main` from `--baked`).
+    #[arg(skip)]
+    pub(crate) loaded: Option<Arc<BakedSampler>>,
+}
+
+/// Loads `--baked` into `options.loaded` (typed errors exit 2), warns about the flags a bake
+/// ignores, and checks `--model`/`--param`, when given, against the bake's model.
+pub(crate) fn load_baked(
+    options: &mut SamplerOptions,
+    model: Option<&str>,
+    params: &[String],
+) -> Result<Option<Arc<dyn Brdf>>, CliError> {
+    let Some(path) = &options.baked else {
+        return Ok(None);
+    };
+    let mode = match options.mode {
+        Mode::Rejection => BakedMode::Rejection,
+        Mode::Warp => BakedMode::Warp,
+        m => {
+            return Err(CliError::Usage(format!(
+                "--baked samples in mode rejection or warp, not {}",
+                format!("{m:?}").to_lowercase()
+            )));
+        }
+    };
+    if options.map != MapArg::Orthographic || options.target_trials.is_some() {
+        eprintln!(
+            "brdf: warning: --map and --target-trials are fixed when baking; ignored with --baked"
+        );
+    }
+    let baked = BakedSampler::load(path)
+        .map_err(|e| CliError::Usage(format!("--baked {e}")))?
+        .with_mode(mode);
+    if let Some(name) = model {
+        let want = brdf_sampling::registry::create(name, params.iter().map(String::as_str))?;
+        if want.name() != baked.brdf().name() || want.params() != baked.brdf().params() {
+            return Err(CliError::Usage(format!(
+                "--baked {}: baked for model `{}` with other parameters than --model {name} {}",
+                path.display(),
+                baked.brdf().name(),
+                params.join(" ")
+            )));
+        }
+    }
+    let brdf = baked.brdf().clone();
+    options.loaded = Some(Arc::new(baked));
+    Ok(Some(brdf))
+}
+
+/// A loaded bake at one incident direction.
+struct BakedAtWi(Arc<BakedSampler>, Vec3);
+
+impl DirectionSampler for BakedAtWi {
+    fn name(&self) -> &'static str {
+        match self.0.mode() {
+            BakedMode::Rejection => "baked rejection",
+            BakedMode::Warp => "baked warp",
+        }
+    }
+    fn sample(
+        &self,
+        rng: &mut dyn rand_core::Rng,
+    ) -> Option<brdf_sampling::quadtree_sampler::Sample> {
+        self.0.at(self.1).ok()?.sample(rng)
+    }
+    fn pdf(&self, wo: Vec3) -> f32 {
+        self.0.at(self.1).map_or(0.0, |a| a.pdf(wo))
+    }
 }
 
 /// Parses `x,y,z` into a direction (not yet normalised).
@@ -87,6 +161,8 @@ pub(crate) struct Built<'a> {
     pub(crate) tree: Option<(TreeStats, f64, Option<ViolationCounter<'a>>)>,
     /// Seconds spent building (0 for the baselines).
     pub(crate) build_seconds: f64,
+    /// The bake, for `--baked`.
+    pub(crate) baked: Option<Arc<BakedSampler>>,
 }
 
 /// Parses and checks `--wi`.
@@ -112,11 +188,21 @@ pub(crate) fn build<'a>(
         )));
     }
     let t0 = Instant::now();
+    if let Some(baked) = &args.loaded {
+        let b = baked.clone();
+        return Ok(Built {
+            sampler: Box::new(BakedAtWi(baked.clone(), wi)),
+            tree: None,
+            build_seconds: 0.0,
+            baked: Some(b),
+        });
+    }
     let baseline = |kind| -> Result<Built<'a>, CliError> {
         Ok(Built {
             sampler: Box::new(BaselineSampler::new(brdf, wi, kind)?),
             tree: None,
             build_seconds: 0.0,
+            baked: None,
         })
     };
     match args.mode {
@@ -129,6 +215,7 @@ pub(crate) fn build<'a>(
                 sampler: Box::new(t),
                 tree: None,
                 build_seconds: t0.elapsed().as_secs_f64(),
+                baked: None,
             })
         }
         Mode::Warp => {
@@ -143,6 +230,7 @@ pub(crate) fn build<'a>(
                 sampler: Box::new(w),
                 tree: Some((stats, albedo, None)),
                 build_seconds,
+                baked: None,
             })
         }
         Mode::Rejection => {
@@ -163,6 +251,7 @@ pub(crate) fn build<'a>(
                 sampler: Box::new(ArcSampler(q)),
                 tree: Some((stats, albedo, Some(Box::new(move || q2.bound_violations())))),
                 build_seconds,
+                baked: None,
             })
         }
     }
@@ -195,8 +284,13 @@ pub(crate) fn run_sample(
     mut stdout: impl Write,
 ) -> Result<(), CliError> {
     let built = build_from(brdf, args)?;
-    let file = std::fs::File::create(out)
+    // Complete or absent: the records go to a temporary file beside `out`, renamed over it
+    // once all are written and synced; any failure removes it.
+    let tmp = temporary_beside(out)
         .map_err(|e| CliError::Usage(format!("--out {}: {e}", out.display())))?;
+    let file = std::fs::File::create(&tmp)
+        .map_err(|e| CliError::Usage(format!("--out {}: {e}", out.display())))?;
+    let guard = RemoveOnDrop(Some(tmp.clone()));
     let mut w = BufWriter::with_capacity(1 << 20, file);
     let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
     let t0 = Instant::now();
@@ -218,7 +312,12 @@ pub(crate) fn run_sample(
             w.write_all(&v.to_le_bytes())?;
         }
     }
-    w.flush()?;
+    let file = w.into_inner().map_err(|e| e.into_error())?;
+    file.sync_all()?;
+    drop(file);
+    std::fs::rename(&tmp, out)
+        .map_err(|e| CliError::Usage(format!("--out {}: {e}", out.display())))?;
+    guard.disarm();
     let sample_seconds = t0.elapsed().as_secs_f64();
     let n = count.max(1) as f64;
     let mut summary = json!({
@@ -251,6 +350,29 @@ pub(crate) fn run_sample(
                     obj.insert("bound_violations".into(), Value::Null);
                 }
             }
+        }
+        None if built.baked.is_some() => {
+            let b = built.baked.as_ref().expect("a bake");
+            obj.insert("albedo".into(), json!(weight_sum / n));
+            obj.insert(
+                "albedo_method".into(),
+                json!("monte carlo (mean weight of the baked sampler)"),
+            );
+            obj.insert("mode".into(), json!(b.mode().name()));
+            obj.insert("baked".into(), json!(true));
+            obj.insert("trees".into(), json!(b.trees()));
+            obj.insert("nodes".into(), json!(b.nodes()));
+            obj.insert("bytes".into(), json!(b.bytes()));
+            obj.insert("leaves".into(), Value::Null);
+            obj.insert("max_depth".into(), Value::Null);
+            obj.insert("expected_trials".into(), Value::Null);
+            obj.insert(
+                "bound_violations".into(),
+                match b.mode() {
+                    BakedMode::Rejection => json!(b.bound_violations()),
+                    BakedMode::Warp => Value::Null,
+                },
+            );
         }
         None => {
             obj.insert("albedo".into(), json!(weight_sum / n));
@@ -314,4 +436,37 @@ pub(crate) fn run_pdf(
     }
     out.flush()?;
     Ok(())
+}
+
+/// A temporary path in the directory of `path` (so that a rename over `path` is atomic).
+pub(crate) fn temporary_beside(path: &std::path::Path) -> std::io::Result<std::path::PathBuf> {
+    let name = path
+        .file_name()
+        .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file name"))?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    let mut tmp = std::ffi::OsString::from(".");
+    tmp.push(name);
+    tmp.push(format!(".{}.tmp", std::process::id()));
+    Ok(dir.join(tmp))
+}
+
+/// Removes a temporary file when dropped, unless disarmed.
+pub(crate) struct RemoveOnDrop(pub(crate) Option<std::path::PathBuf>);
+
+impl RemoveOnDrop {
+    /// Keeps the file (it has been renamed into place).
+    pub(crate) fn disarm(mut self) {
+        self.0 = None;
+    }
+}
+
+impl Drop for RemoveOnDrop {
+    fn drop(&mut self) {
+        if let Some(p) = self.0.take() {
+            let _ = std::fs::remove_file(p);
+        }
+    }
 }

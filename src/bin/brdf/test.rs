@@ -7,6 +7,7 @@ use crate::sample::{self, SamplerOptions};
 use brdf_sampling::Brdf;
 use brdf_sampling::geometry::spherical_direction;
 use brdf_sampling::glam::Vec3;
+use brdf_sampling::quadtree_sampler::DirectionSampler;
 use brdf_sampling::quadtree_sampler::validate::{CellGrid, ChiSquare, Report, Validation, sidak};
 use rand_core::SeedableRng;
 use serde_json::{Value, json};
@@ -73,6 +74,26 @@ pub(crate) struct TestArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
     json: bool,
+}
+
+impl TestArgs {
+    /// The sampler options (for `main` to load `--baked` into).
+    pub(crate) fn options_mut(&mut self) -> &mut SamplerOptions {
+        &mut self.options
+    }
+}
+
+/// The relative floor of the mean-weight test (see its use).
+const WEIGHT_FLOOR: f64 = 1e-4;
+
+/// The baked sampler's mean weight against the quadrature albedo at one wi (SPEC §7).
+struct WeightTest {
+    wi: Vec3,
+    mean: f64,
+    se: f64,
+    albedo: f64,
+    p: f64,
+    passed: bool,
 }
 
 /// One finished test.
@@ -198,8 +219,13 @@ pub(crate) fn run(
         std::fs::create_dir_all(dir)
             .map_err(|e| CliError::Usage(format!("--out {}: {e}", dir.display())))?;
     }
-    let tests = wis.len() * grids.len();
+    let baked = args.options.loaded.is_some();
+    // A baked sampler is judged on its own pdf (it follows f·cos only on its grid), plus one
+    // test per wi that its mean weight is the albedo.
+    let against = if baked { Against::Own } else { args.against };
+    let tests = wis.len() * grids.len() + if baked { wis.len() } else { 0 };
     let alpha = sidak(args.alpha, tests);
+    let mut weight_tests = Vec::new();
     let mode = format!("{:?}", args.options.mode).to_lowercase();
     let mut rows = Vec::with_capacity(tests);
     let mut builds = Vec::with_capacity(wis.len());
@@ -238,7 +264,7 @@ pub(crate) fn run(
                 images.push(exr);
             }
             rows.push(Row {
-                against: args.against,
+                against,
                 wi,
                 grid,
                 report,
@@ -247,7 +273,37 @@ pub(crate) fn run(
             });
         }
     }
-    let passed = rows.iter().all(Row::passed);
+    if baked {
+        for (k, &wi) in wis.iter().enumerate() {
+            let built = sample::build(brdf, wi, &args.options)?;
+            let seed = splitmix64(args.seed ^ splitmix64(0xba4e_0000 + k as u64));
+            let (mean, se) = mean_weight(&*built.sampler, args.samples, seed);
+            let albedo = f64::from(brdf_sampling::geometry::luminance(
+                brdf_sampling::quadrature::directional_albedo(brdf, wi, 96, 6).as_vec3(),
+            ));
+            // The trees' leaf integrals and the quadrature are exact to about 10⁻⁶; a sampler
+            // this close to ∝ f·cos has a standard error far below that, so the difference is
+            // judged against the counting error and a 10⁻⁴ relative floor together.
+            let scale = (se * se + (WEIGHT_FLOOR * albedo).powi(2)).sqrt();
+            let z = if scale > 0.0 {
+                (mean - albedo).abs() / scale
+            } else if mean == albedo {
+                0.0
+            } else {
+                f64::INFINITY
+            };
+            let p = brdf_sampling::special::erfc(z / std::f64::consts::SQRT_2);
+            weight_tests.push(WeightTest {
+                wi,
+                mean,
+                se,
+                albedo,
+                p,
+                passed: p >= alpha,
+            });
+        }
+    }
+    let passed = rows.iter().all(Row::passed) && weight_tests.iter().all(|w| w.passed);
     let header = format!(
         "model {}{}{}, sampler {mode}{}, {} samples per test, judged against {}, α = {} over {tests} tests (Šidák: {:.3e} each)",
         brdf.name(),
@@ -259,14 +315,35 @@ pub(crate) fn run(
             String::new()
         },
         args.samples,
-        match args.against {
-            Against::Fcos => "f·cos and its own pdf",
-            Against::Own => "its own pdf",
+        match (against, baked) {
+            (Against::Fcos, _) => "f·cos and its own pdf",
+            (Against::Own, false) => "its own pdf",
+            (Against::Own, true) => "its own pdf, and its mean weight against the albedo",
         },
         args.alpha,
         alpha
     );
-    let table = table(&header, &rows);
+    let mut table = table(&header, &rows);
+    if baked {
+        table.push_str("\n| wi | mean weight | SE | albedo (quadrature) | p | verdict |\n|---|---:|---:|---:|---:|---|\n");
+        for w in &weight_tests {
+            table.push_str(&format!(
+                "| {:.4},{:.4},{:.4} | {:.6} | {:.2e} | {:.6} | {:.3e} | {} |\n",
+                w.wi.x,
+                w.wi.y,
+                w.wi.z,
+                w.mean,
+                w.se,
+                w.albedo,
+                w.p,
+                if w.passed {
+                    "pass"
+                } else {
+                    "REJECT: the mean weight is not the albedo"
+                }
+            ));
+        }
+    }
     if let Some(dir) = &args.out {
         let index = dir.join("index.md");
         std::fs::write(&index, format!("# brdf test\n\n{table}\n{LEGEND}\n"))
@@ -278,7 +355,16 @@ pub(crate) fn run(
             "model": brdf.name(),
             "params": params,
             "mode": mode,
-            "against": format!("{:?}", args.against).to_lowercase(),
+            "against": format!("{:?}", against).to_lowercase(),
+            "baked": baked,
+            "weight_tests": weight_tests.iter().map(|w| json!({
+                "wi": [w.wi.x, w.wi.y, w.wi.z],
+                "mean_weight": w.mean,
+                "standard_error": w.se,
+                "albedo": w.albedo,
+                "p_value": w.p,
+                "passed": w.passed,
+            })).collect::<Vec<_>>(),
             "samples": args.samples,
             "alpha": args.alpha,
             "alpha_per_test": alpha,
@@ -385,4 +471,31 @@ fn row_json(r: &Row) -> Value {
         "reasons": r.reasons(),
         "images": r.images.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
     })
+}
+
+/// The mean luminance weight and its standard error over `samples` draws (lost samples
+/// score 0), in chunks of 65536 with their own generators, summed in order.
+fn mean_weight(sampler: &dyn DirectionSampler, samples: u64, seed: u64) -> (f64, f64) {
+    use rayon::prelude::*;
+    let chunk = 1u64 << 16;
+    let parts: Vec<(f64, f64)> = (0..samples.div_ceil(chunk))
+        .into_par_iter()
+        .map(|k| {
+            let mut rng = rand_pcg::Pcg64::seed_from_u64(splitmix64(seed ^ splitmix64(k)));
+            let n = chunk.min(samples - k * chunk);
+            let (mut s, mut q) = (0.0, 0.0);
+            for _ in 0..n {
+                let w = sampler.sample(&mut rng).map_or(0.0, |s| {
+                    f64::from(brdf_sampling::geometry::luminance(s.weight))
+                });
+                s += w;
+                q += w * w;
+            }
+            (s, q)
+        })
+        .collect();
+    let (s, q) = parts.iter().fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+    let n = samples as f64;
+    let m = s / n;
+    (m, ((q / n - m * m).max(0.0) / n).sqrt())
 }

@@ -1,0 +1,495 @@
+//! Bake files (SPEC §7): a [`BakedSampler`] written once and read back in milliseconds.
+//!
+//! Layout (all integers little-endian):
+//!
+//! | bytes | what |
+//! | --- | --- |
+//! | 8 | magic `BRDFBAKE` |
+//! | 4 | format version ([`BAKE_FORMAT_VERSION`]) |
+//! | 8 | payload length n |
+//! | n | payload: the model name, its parameters as `name=value`, the bake configuration, the grid's φ domain, and per tree its wi, volume and both layouts' nodes, encoded with `postcard` (LEB128 integers, little-endian floats) |
+//! | 4 | CRC-32 (IEEE) of everything before it |
+//!
+//! Reading checks, in order: the magic, the version, the length against the file's size
+//! (truncated or trailing bytes), the checksum (a flipped bit anywhere), the payload's
+//! decoding, the model (registered, parameters valid), the configuration (in range, and the
+//! grid it implies is the one recorded: the model's declared symmetries have not changed),
+//! and every tree's structure. Each failure is its own [`BakeFileError`]; nothing panics,
+//! and no length in the file is trusted before the checksum has passed.
+
+use crate::baked::{
+    BakeConfig, BakeGrid, BakedSampler, PhiDomain, Slice, Tables, WarpNode, WarpTable,
+};
+use crate::config::{BuildConfig, IntegrationRule};
+use crate::packed::PackedTree;
+use alloc::string::{String, ToString};
+use alloc::sync::Arc;
+use alloc::vec::Vec;
+use brdf_core::{Brdf, DiskMap, ParamError, registry};
+use core::fmt;
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+/// The first eight bytes of every bake file.
+pub const BAKE_MAGIC: [u8; 8] = *b"BRDFBAKE";
+
+/// The format version this library writes and reads.
+pub const BAKE_FORMAT_VERSION: u32 = 1;
+
+const HEADER: usize = 8 + 4 + 8;
+const TRAILER: usize = 4;
+
+/// Why bytes could not be read as a bake file.
+#[derive(Clone, Debug, PartialEq)]
+pub enum BakeFileError {
+    /// The bytes do not start with [`BAKE_MAGIC`]: not a bake file.
+    NotABakeFile,
+    /// A bake file of another format version.
+    Version {
+        /// The version in the file.
+        found: u32,
+        /// The version this library reads.
+        supported: u32,
+    },
+    /// Fewer bytes than the header says (a truncated file).
+    Truncated {
+        /// Bytes the header promises.
+        expected: u64,
+        /// Bytes present.
+        found: u64,
+    },
+    /// More bytes than the header says.
+    TrailingBytes {
+        /// Bytes the header promises.
+        expected: u64,
+        /// Bytes present.
+        found: u64,
+    },
+    /// The checksum does not match: the file was corrupted.
+    Checksum {
+        /// The CRC-32 stored in the file.
+        stored: u32,
+        /// The CRC-32 of the bytes read.
+        computed: u32,
+    },
+    /// The payload does not decode (a file written by something else under this name).
+    Decode,
+    /// The model recorded is unknown, or its parameters are invalid.
+    Model(ParamError),
+    /// A recorded option is out of range or names an unknown variant.
+    Config(&'static str),
+    /// The recorded grid is not the grid the model and configuration give (its symmetry
+    /// declaration or the grid rules changed since the file was written).
+    GridMismatch,
+    /// A tree's nodes are not a valid tree.
+    Tree {
+        /// Which tree (row-major in the grid; adjoint trees after the forward ones).
+        index: usize,
+        /// What is wrong.
+        fault: &'static str,
+    },
+}
+
+impl fmt::Display for BakeFileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::NotABakeFile => write!(f, "not a bake file (no BRDFBAKE header)"),
+            Self::Version { found, supported } => write!(
+                f,
+                "bake file format version {found}; this build reads version {supported} (bake it again)"
+            ),
+            Self::Truncated { expected, found } => {
+                write!(f, "truncated bake file: {found} bytes of {expected}")
+            }
+            Self::TrailingBytes { expected, found } => {
+                write!(f, "bake file has {found} bytes, its header says {expected}")
+            }
+            Self::Checksum { stored, computed } => write!(
+                f,
+                "bake file is corrupted (CRC-32 {computed:08x}, recorded {stored:08x})"
+            ),
+            Self::Decode => write!(f, "bake file payload does not decode"),
+            Self::Model(e) => write!(f, "bake file's model: {e}"),
+            Self::Config(what) => write!(f, "bake file's configuration: {what}"),
+            Self::GridMismatch => write!(
+                f,
+                "bake file's grid is not the one its model and configuration give (bake it again)"
+            ),
+            Self::Tree { index, fault } => write!(f, "bake file's tree {index}: {fault}"),
+        }
+    }
+}
+
+impl core::error::Error for BakeFileError {}
+
+#[derive(Serialize, Deserialize)]
+struct ConfigRecord {
+    map: u8,
+    split_threshold: f64,
+    rule: u8,
+    rule_n: u8,
+    integration_tolerance: f64,
+    integration_depth: u8,
+    max_depth: u8,
+    node_budget: u32,
+    target_trials: Option<f64>,
+    bound_safety: f64,
+    bound_grid: u8,
+    min_relative_waste: f64,
+    theta_steps: u16,
+    phi_steps: u16,
+    defensive: f64,
+}
+
+#[derive(Serialize, Deserialize)]
+struct SliceRecord {
+    wi: [f32; 3],
+    volume: f64,
+    budget_exhausted: bool,
+    packed: Vec<[u32; 4]>,
+    warp: Vec<(u32, f32)>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct Record {
+    model: String,
+    params: Vec<String>,
+    config: ConfigRecord,
+    domain: u8,
+    forward: Vec<SliceRecord>,
+    adjoint: Option<Vec<SliceRecord>>,
+}
+
+fn map_code(m: DiskMap) -> u8 {
+    match m {
+        DiskMap::Orthographic => 0,
+        DiskMap::Concentric => 1,
+    }
+}
+
+fn domain_code(d: PhiDomain) -> u8 {
+    match d {
+        PhiDomain::Rotation => 0,
+        PhiDomain::Quadrant => 1,
+        PhiDomain::UpperHalf => 2,
+        PhiDomain::RightHalf => 3,
+        PhiDomain::Circle => 4,
+    }
+}
+
+impl ConfigRecord {
+    fn of(c: &BakeConfig) -> Self {
+        let b = &c.build;
+        let (rule, rule_n) = match b.rule {
+            IntegrationRule::Midpoint { n } => (0, n),
+            IntegrationRule::GaussLegendre { n } => (1, n),
+        };
+        Self {
+            map: map_code(b.map),
+            split_threshold: b.split_threshold,
+            rule,
+            rule_n,
+            integration_tolerance: b.integration_tolerance,
+            integration_depth: b.integration_depth,
+            max_depth: b.max_depth,
+            node_budget: b.node_budget,
+            target_trials: b.target_trials,
+            bound_safety: b.bound_safety,
+            bound_grid: b.bound_grid,
+            min_relative_waste: b.min_relative_waste,
+            theta_steps: c.theta_steps,
+            phi_steps: c.phi_steps,
+            defensive: c.defensive,
+        }
+    }
+
+    fn to_config(&self) -> Result<BakeConfig, BakeFileError> {
+        let map = match self.map {
+            0 => DiskMap::Orthographic,
+            1 => DiskMap::Concentric,
+            _ => return Err(BakeFileError::Config("unknown disk map")),
+        };
+        let rule = match self.rule {
+            0 => IntegrationRule::Midpoint { n: self.rule_n },
+            1 => IntegrationRule::GaussLegendre { n: self.rule_n },
+            _ => return Err(BakeFileError::Config("unknown integration rule")),
+        };
+        let build = BuildConfig {
+            map,
+            split_threshold: self.split_threshold,
+            rule,
+            integration_tolerance: self.integration_tolerance,
+            integration_depth: self.integration_depth,
+            max_depth: self.max_depth,
+            node_budget: self.node_budget,
+            target_trials: self.target_trials,
+            bound_safety: self.bound_safety,
+            bound_grid: self.bound_grid,
+            min_relative_waste: self.min_relative_waste,
+            // Not recorded: serial and parallel builds are bit-identical.
+            parallel: true,
+        };
+        build
+            .validate()
+            .map_err(|_| BakeFileError::Config("a build option is out of range"))?;
+        if !(self.defensive > 0.0 && self.defensive < 1.0) {
+            return Err(BakeFileError::Config("defensive share out of (0, 1)"));
+        }
+        Ok(BakeConfig {
+            build,
+            theta_steps: self.theta_steps,
+            phi_steps: self.phi_steps,
+            defensive: self.defensive,
+        })
+    }
+}
+
+fn slice_record(s: &Slice) -> SliceRecord {
+    SliceRecord {
+        wi: s.wi.to_array(),
+        volume: s.tree.volume(),
+        budget_exhausted: s.tree.stats().budget_exhausted,
+        packed: s.tree.raw_nodes(),
+        warp: s.warp.nodes.iter().map(|n| (n.link, n.q)).collect(),
+    }
+}
+
+fn slices_from(
+    records: Vec<SliceRecord>,
+    grid: &BakeGrid,
+    map: DiskMap,
+    first_index: usize,
+) -> Result<Tables, BakeFileError> {
+    if records.len() != grid.len() {
+        return Err(BakeFileError::GridMismatch);
+    }
+    let mut slices = Vec::with_capacity(records.len());
+    for (k, r) in records.into_iter().enumerate() {
+        let index = first_index + k;
+        let wi = Vec3::from_array(r.wi);
+        if wi.to_array().map(f32::to_bits) != grid.direction(k).to_array().map(f32::to_bits) {
+            return Err(BakeFileError::GridMismatch);
+        }
+        let tree = PackedTree::from_raw(&r.packed, map, r.volume, r.budget_exhausted)
+            .map_err(|fault| BakeFileError::Tree { index, fault })?;
+        let warp = WarpTable::from_raw(
+            r.warp
+                .into_iter()
+                .map(|(link, q)| WarpNode { link, q })
+                .collect(),
+        )
+        .map_err(|fault| BakeFileError::Tree { index, fault })?;
+        if warp.nodes.len() != tree.nodes().len()
+            || warp
+                .nodes
+                .iter()
+                .zip(tree.nodes())
+                .any(|(w, p)| (w.link == crate::baked::WARP_LEAF) != p.is_leaf())
+        {
+            return Err(BakeFileError::Tree {
+                index,
+                fault: "its warp table and its tree differ in shape",
+            });
+        }
+        slices.push(Slice { wi, tree, warp });
+    }
+    Ok(Tables { slices })
+}
+
+impl BakedSampler {
+    /// The bake file's bytes (see the module doc of `bake_file`): everything needed to
+    /// sample again without building a tree.
+    #[must_use]
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let (forward, adjoint) = self.tables();
+        let record = Record {
+            model: self.brdf().name().to_string(),
+            params: self
+                .brdf()
+                .params()
+                .iter()
+                .map(|(spec, v)| alloc::format!("{}={v}", spec.name))
+                .collect(),
+            config: ConfigRecord::of(self.config()),
+            domain: domain_code(self.grid().domain()),
+            forward: forward.slices.iter().map(slice_record).collect(),
+            adjoint: adjoint.map(|t| t.slices.iter().map(slice_record).collect()),
+        };
+        // Encoding into a Vec cannot fail for these plain types.
+        let payload = postcard::to_allocvec(&record).unwrap_or_default();
+        let mut out = Vec::with_capacity(HEADER + payload.len() + TRAILER);
+        out.extend_from_slice(&BAKE_MAGIC);
+        out.extend_from_slice(&BAKE_FORMAT_VERSION.to_le_bytes());
+        out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+        out.extend_from_slice(&payload);
+        let crc = crc32fast::hash(&out);
+        out.extend_from_slice(&crc.to_le_bytes());
+        out
+    }
+
+    /// Reads a bake file's bytes, rebuilding the model from the registry (see the module
+    /// doc of `bake_file` for every check made).
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self, BakeFileError> {
+        if bytes.len() < 8 || bytes[..8] != BAKE_MAGIC {
+            return Err(BakeFileError::NotABakeFile);
+        }
+        let word = |at: usize, n: usize| -> Result<u64, BakeFileError> {
+            let b = bytes.get(at..at + n).ok_or(BakeFileError::Truncated {
+                expected: (at + n) as u64,
+                found: bytes.len() as u64,
+            })?;
+            Ok(b.iter()
+                .rev()
+                .fold(0u64, |acc, &x| (acc << 8) | u64::from(x)))
+        };
+        let version = word(8, 4)? as u32;
+        if version != BAKE_FORMAT_VERSION {
+            return Err(BakeFileError::Version {
+                found: version,
+                supported: BAKE_FORMAT_VERSION,
+            });
+        }
+        let n = word(12, 8)?;
+        let expected =
+            n.checked_add((HEADER + TRAILER) as u64)
+                .ok_or(BakeFileError::Truncated {
+                    expected: u64::MAX,
+                    found: bytes.len() as u64,
+                })?;
+        let found = bytes.len() as u64;
+        if found < expected {
+            return Err(BakeFileError::Truncated { expected, found });
+        }
+        if found > expected {
+            return Err(BakeFileError::TrailingBytes { expected, found });
+        }
+        let body = HEADER + n as usize;
+        let stored = word(body, 4)? as u32;
+        let computed = crc32fast::hash(&bytes[..body]);
+        if stored != computed {
+            return Err(BakeFileError::Checksum { stored, computed });
+        }
+        let record: Record =
+            postcard::from_bytes(&bytes[HEADER..body]).map_err(|_| BakeFileError::Decode)?;
+        let info = registry::find(&record.model).map_err(BakeFileError::Model)?;
+        let params = info
+            .parse_params(record.params.iter().map(String::as_str))
+            .map_err(BakeFileError::Model)?;
+        let brdf: Arc<dyn Brdf> = info.build(&params).map_err(BakeFileError::Model)?.into();
+        let config = record.config.to_config()?;
+        let grid = BakeGrid::new(brdf.symmetry(), config.theta_steps, config.phi_steps)
+            .map_err(|_| BakeFileError::Config("theta or phi steps out of range"))?;
+        if domain_code(grid.domain()) != record.domain {
+            return Err(BakeFileError::GridMismatch);
+        }
+        if record.adjoint.is_some() == brdf.symmetry().reciprocal {
+            return Err(BakeFileError::GridMismatch);
+        }
+        let map = config.build.map;
+        let forward = slices_from(record.forward, &grid, map, 0)?;
+        let adjoint = record
+            .adjoint
+            .map(|a| slices_from(a, &grid, map, grid.len()))
+            .transpose()?;
+        Ok(Self::from_parts(brdf, config, grid, forward, adjoint))
+    }
+}
+
+#[cfg(feature = "std")]
+mod files {
+    use super::{BakeFileError, BakedSampler};
+    use std::fmt;
+    use std::io::Write;
+    use std::path::{Path, PathBuf};
+
+    /// Why a bake file could not be read or written.
+    #[derive(Debug)]
+    pub enum BakeIoError {
+        /// The file system refused (missing file, a directory, no permission, disk full).
+        Io {
+            /// The path.
+            path: PathBuf,
+            /// The error.
+            source: std::io::Error,
+        },
+        /// The file was read but is not a valid bake file.
+        Format {
+            /// The path.
+            path: PathBuf,
+            /// What is wrong.
+            source: BakeFileError,
+        },
+    }
+
+    impl fmt::Display for BakeIoError {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            match self {
+                Self::Io { path, source } => write!(f, "{}: {source}", path.display()),
+                Self::Format { path, source } => write!(f, "{}: {source}", path.display()),
+            }
+        }
+    }
+
+    impl std::error::Error for BakeIoError {
+        fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+            match self {
+                Self::Io { source, .. } => Some(source),
+                Self::Format { source, .. } => Some(source),
+            }
+        }
+    }
+
+    /// Writes `bytes` to `path` complete or not at all: into a temporary file beside it,
+    /// flushed and synced, then renamed over `path`. A failure (or a kill) leaves the
+    /// previous file, or none, never a truncated one.
+    pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let name = path
+            .file_name()
+            .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidInput, "no file name"))?;
+        let mut tmp_name = std::ffi::OsString::from(".");
+        tmp_name.push(name);
+        tmp_name.push(std::format!(".{}.tmp", std::process::id()));
+        let tmp = dir.join(tmp_name);
+        let result = (|| {
+            let mut f = std::fs::File::create(&tmp)?;
+            f.write_all(bytes)?;
+            f.sync_all()?;
+            std::fs::rename(&tmp, path)
+        })();
+        if result.is_err() {
+            let _ = std::fs::remove_file(&tmp);
+        }
+        result
+    }
+
+    impl BakedSampler {
+        /// Writes the bake file (complete or absent: see [`write_atomically`]).
+        pub fn save(&self, path: impl AsRef<Path>) -> Result<(), BakeIoError> {
+            let path = path.as_ref();
+            write_atomically(path, &self.to_bytes()).map_err(|source| BakeIoError::Io {
+                path: path.to_path_buf(),
+                source,
+            })
+        }
+
+        /// Reads a bake file (see [`BakedSampler::from_bytes`]).
+        pub fn load(path: impl AsRef<Path>) -> Result<Self, BakeIoError> {
+            let path = path.as_ref();
+            let bytes = std::fs::read(path).map_err(|source| BakeIoError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+            Self::from_bytes(&bytes).map_err(|source| BakeIoError::Format {
+                path: path.to_path_buf(),
+                source,
+            })
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+pub use files::{BakeIoError, write_atomically};

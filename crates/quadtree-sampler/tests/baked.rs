@@ -1,0 +1,657 @@
+//! The baked sampler (SPEC §7): its pdf is the density of what it draws at any wi (χ² against
+//! its own pdf, every continuous model, both modes, on- and off-grid, to grazing), its mean
+//! weight is the albedo, the checks can fail (a mixture that drops a neighbour's weight from
+//! its pdf), both transport roles, the world frame, serial == parallel bakes, and bake files
+//! (round trip, and a typed error for every kind of damage).
+
+use brdf_core::quadrature::directional_albedo;
+use brdf_core::{Brdf, geometry::luminance, registry};
+use glam::{Quat, Vec2, Vec3};
+use quadtree_sampler::validate::{CellGrid, Validation, sidak};
+use quadtree_sampler::{
+    BakeConfig, BakeError, BakeFileError, BakedError, BakedMode, BakedSampler, DirectionSampler,
+    GRID_THETA_MAX_DEG, Role, Sample, WorldBsdf, uniform_f32,
+};
+use rand_core::{Rng, SeedableRng};
+use rand_pcg::Pcg64;
+use std::sync::Arc;
+
+fn dir(theta: f64, phi: f64) -> Vec3 {
+    let (t, p) = (theta.to_radians(), phi.to_radians());
+    Vec3::new(
+        (t.sin() * p.cos()) as f32,
+        (t.sin() * p.sin()) as f32,
+        t.cos() as f32,
+    )
+}
+
+fn model(name: &str, params: &[&str]) -> Arc<dyn Brdf> {
+    registry::create(name, params.iter().copied())
+        .unwrap()
+        .into()
+}
+
+/// A small grid (8 θ rows, 3 φ columns): neighbours far apart, so the mixture and its
+/// rotations are exercised hard.
+fn small() -> BakeConfig {
+    BakeConfig {
+        theta_steps: 8,
+        phi_steps: 3,
+        ..BakeConfig::default()
+    }
+}
+
+/// Every continuous model at its defaults, plus a sharp lobe and an anisotropic Ward.
+fn models() -> Vec<(&'static str, Vec<&'static str>)> {
+    let mut v: Vec<_> = registry::models()
+        .iter()
+        .filter(|m| !m.delta)
+        .map(|m| (m.name, vec![]))
+        .collect();
+    v.push(("phong", vec!["n=1000", "kd=0"]));
+    v.push(("ward", vec!["alpha_x=0.05", "alpha_y=0.2"]));
+    v
+}
+
+fn costly(name: &str) -> bool {
+    matches!(name, "htsg" | "poulin-fournier")
+}
+
+/// On-grid (row 3 of 8: 38.14°, φ = 0, and the last row at another φ), off-grid, grazing
+/// and beyond the last row.
+fn incident(name: &str) -> Vec<Vec3> {
+    let row3 = 3.0 * GRID_THETA_MAX_DEG / 7.0;
+    if costly(name) {
+        vec![dir(52.3, 37.0), dir(85.0, 200.0)]
+    } else {
+        vec![
+            dir(row3, 0.0),
+            dir(52.3, 37.0),
+            dir(85.0, 200.0),
+            dir(GRID_THETA_MAX_DEG, 123.0),
+            dir(89.6, 301.0),
+        ]
+    }
+}
+
+/// Every sample's pdf is `pdf(wi, wo)` and its f is `eval(wi, wo)`, every model, both
+/// modes, on- and off-grid wi (both roles for the non-reciprocal model).
+#[test]
+fn sample_pdf_and_eval_agree_with_pdf_and_eval() {
+    for (name, params) in models() {
+        let b = model(name, &params);
+        let config = BakeConfig {
+            theta_steps: 4,
+            phi_steps: 2,
+            ..BakeConfig::default()
+        };
+        let mut baked = BakedSampler::new(b.clone(), config).unwrap();
+        for mode in [BakedMode::Rejection, BakedMode::Warp] {
+            baked.set_mode(mode);
+            let mut rng = Pcg64::seed_from_u64(3);
+            for wi in incident(name) {
+                for role in [Role::Importance, Role::Radiance] {
+                    let mut got = 0;
+                    for _ in 0..300 {
+                        let uc = uniform_f32(&mut rng);
+                        let u = Vec2::new(uniform_f32(&mut rng), uniform_f32(&mut rng));
+                        let Some(s) = baked.sample_as(role, wi, uc, u, &mut rng).unwrap() else {
+                            continue;
+                        };
+                        got += 1;
+                        if s.delta {
+                            continue;
+                        }
+                        let pdf = baked.pdf_as(role, wi, s.wo).unwrap();
+                        assert!(
+                            (s.pdf - pdf).abs() <= 1e-5 * pdf,
+                            "{name} {mode:?} {role:?} wi {wi}: sample pdf {} vs pdf {pdf}",
+                            s.pdf
+                        );
+                        assert_eq!(s.f, baked.eval_as(role, wi, s.wo).unwrap());
+                        let want = match role {
+                            Role::Importance => b.eval(wi, s.wo),
+                            Role::Radiance => b.eval(s.wo, wi),
+                        };
+                        assert_eq!(s.f, want);
+                        assert!(s.weight.is_finite() && s.pdf > 0.0);
+                    }
+                    // The warp proxy over the orthographic square spreads a leaf's share over
+                    // all of its square: the part outside the disk (at most 1 − π/4 of a
+                    // one-leaf tree) is lost. Rejection re-draws there.
+                    let least = if mode == BakedMode::Warp { 200 } else { 270 };
+                    assert!(got > least, "{name} {mode:?}: only {got} of 300 samples");
+                }
+            }
+        }
+    }
+}
+
+/// χ² of the baked sampler against its own pdf (see [`chi2_everywhere`]): every continuous
+/// model, both modes, at an off-grid wi and at 85°, 3·10⁵ samples a test (5·10⁴ for the two
+/// models whose eval costs microseconds). The full set is `chi2_against_its_own_pdf_full`.
+#[test]
+fn chi2_against_its_own_pdf() {
+    chi2_everywhere(false);
+}
+
+/// The full set: on-grid, off-grid, 85°, the last row (89°) and beyond it (89.6°), 10⁶
+/// samples a test (2·10⁵ for the costly models). About 10 minutes on 2 cores:
+/// `cargo test --release -p quadtree-sampler --features rayon --test baked -- --ignored`.
+#[test]
+#[ignore = "10 minutes on 2 cores; run with --ignored"]
+fn chi2_against_its_own_pdf_full() {
+    chi2_everywhere(true);
+}
+
+/// χ² against the sampler's own pdf at family-wise α = 0.01 (Šidák over the run's tests).
+fn chi2_everywhere(full: bool) {
+    let wis = |name: &str| -> Vec<Vec3> {
+        if full {
+            incident(name)
+        } else {
+            vec![dir(52.3, 37.0), dir(85.0, 200.0)]
+        }
+    };
+    let tests: usize = models().iter().map(|(n, _)| 2 * wis(n).len()).sum();
+    let alpha = sidak(0.01, tests);
+    let grid = CellGrid::Polar {
+        rings: 16,
+        sectors: 33,
+    };
+    let mut seed = 100;
+    for (name, params) in models() {
+        let b = model(name, &params);
+        let mut baked = BakedSampler::new(b.clone(), small()).unwrap();
+        let samples = match (costly(name), full) {
+            (true, true) => 200_000,
+            (true, false) => 50_000,
+            (false, true) => 1_000_000,
+            (false, false) => 300_000,
+        };
+        for wi in wis(name) {
+            let v = Validation::new(&*b, wi, grid, 1e-7).unwrap();
+            for mode in [BakedMode::Rejection, BakedMode::Warp] {
+                baked.set_mode(mode);
+                seed += 1;
+                let at = baked.at(wi).unwrap();
+                let r = v.test_chunked(
+                    &at,
+                    samples,
+                    |k| Pcg64::seed_from_u64(seed * 1000 + k),
+                    alpha,
+                );
+                let c = r.chi2_own.as_ref().unwrap();
+                println!(
+                    "{name} {params:?} {mode:?} wi {wi}: own χ² {:.1} dof {} p {:.4}, lost {}",
+                    c.statistic, c.dof, c.p_value, r.lost
+                );
+                assert!(
+                    r.passed_own(),
+                    "{name} {params:?} {mode:?} wi {wi}: {:?}",
+                    r.own_reasons
+                );
+            }
+        }
+        assert_eq!(baked.bound_violations(), 0, "{name}");
+    }
+}
+
+/// The negative control: a mixture whose reported pdf leaves out one neighbour's weight is
+/// rejected by the same test (and its weights are biased).
+#[test]
+fn a_pdf_that_drops_a_neighbour_is_rejected() {
+    let b = model("phong", &["n=200", "kd=0.1"]);
+    let baked = Arc::new(BakedSampler::new(b.clone(), small()).unwrap());
+    // Halfway between rows 3 and 4: both neighbours weigh ½.
+    let wi = dir(3.5 * GRID_THETA_MAX_DEG / 7.0, 20.0);
+    let broken = baked.clone().broken_pdf_for_testing();
+    let grid = CellGrid::Polar {
+        rings: 16,
+        sectors: 33,
+    };
+    let v = Validation::new(&*b, wi, grid, 1e-7).unwrap();
+    let r = v.test_chunked(
+        &broken.at(wi),
+        1_000_000,
+        |k| Pcg64::seed_from_u64(7 + k),
+        sidak(0.01, 1),
+    );
+    let c = r.chi2_own.as_ref().unwrap();
+    println!(
+        "broken: own χ² {:.1} dof {} p {:e}",
+        c.statistic, c.dof, c.p_value
+    );
+    assert!(!r.passed_own(), "the broken pdf passed: {c:?}");
+    assert!(c.p_value < 1e-10);
+}
+
+/// The mean weight f·cos/pdf at off-grid wi equals the quadrature albedo within 4 standard
+/// errors at 10⁶ samples (lost samples score 0), both modes; the broken pdf's does not.
+#[test]
+fn mean_weight_is_the_albedo() {
+    let cases = [
+        ("phong", vec!["n=1000", "kd=0"], dir(52.3, 37.0)),
+        ("cook-torrance", vec!["m=0.1"], dir(71.0, 250.0)),
+        (
+            "ward",
+            vec!["alpha_x=0.05", "alpha_y=0.2"],
+            dir(63.0, 100.0),
+        ),
+        ("oren-nayar", vec![], dir(84.0, 10.0)),
+        ("strauss", vec!["smoothness=0.9"], dir(30.0, 300.0)),
+        ("lambert", vec![], dir(89.6, 0.0)),
+    ];
+    let mean = |s: &dyn DirectionSampler, seed: u64| {
+        let mut rng = Pcg64::seed_from_u64(seed);
+        let n = 1_000_000u32;
+        let (mut sum, mut sq) = (0.0f64, 0.0f64);
+        for _ in 0..n {
+            let w = s
+                .sample(&mut rng)
+                .map_or(0.0, |s: Sample| f64::from(luminance(s.weight)));
+            sum += w;
+            sq += w * w;
+        }
+        let m = sum / f64::from(n);
+        (m, ((sq / f64::from(n) - m * m) / f64::from(n)).sqrt())
+    };
+    for (k, (name, params, wi)) in cases.into_iter().enumerate() {
+        let b = model(name, &params);
+        let albedo = f64::from(luminance(directional_albedo(&*b, wi, 96, 6).as_vec3()));
+        let mut baked = BakedSampler::new(b.clone(), small()).unwrap();
+        for mode in [BakedMode::Rejection, BakedMode::Warp] {
+            baked.set_mode(mode);
+            let (m, se) = mean(&baked.at(wi).unwrap(), k as u64);
+            println!("{name} {mode:?}: mean weight {m:.6} ± {se:.1e}, albedo {albedo:.6}");
+            assert!(
+                (m - albedo).abs() <= 4.0 * se,
+                "{name} {mode:?}: {m} ± {se} vs {albedo}"
+            );
+        }
+    }
+    let b = model("phong", &["n=200", "kd=0.1"]);
+    let baked = Arc::new(BakedSampler::new(b.clone(), small()).unwrap());
+    let wi = dir(3.5 * GRID_THETA_MAX_DEG / 7.0, 20.0);
+    let albedo = f64::from(luminance(directional_albedo(&*b, wi, 96, 6).as_vec3()));
+    let broken = baked.broken_pdf_for_testing();
+    let (m, se) = mean(&broken.at(wi), 99);
+    assert!(
+        (m - albedo).abs() > 4.0 * se,
+        "broken: {m} ± {se} vs {albedo}"
+    );
+}
+
+/// The non-reciprocal model's camera-path role samples the light direction by its adjoint:
+/// χ² against f_r(wi, given)·cos θi (judged on its own pdf), and its adjoint trees differ from
+/// the forward ones; a reciprocal model's two roles draw the same directions.
+#[test]
+fn transport_roles() {
+    #[derive(Debug)]
+    struct Swap(Arc<dyn Brdf>);
+    impl Brdf for Swap {
+        fn name(&self) -> &'static str {
+            "adjoint"
+        }
+        fn params(&self) -> brdf_core::ParamSet {
+            self.0.params()
+        }
+        fn eval(&self, a: Vec3, b: Vec3) -> Vec3 {
+            self.0.eval(b, a)
+        }
+    }
+    struct AsRadiance<'a>(&'a BakedSampler, Vec3);
+    impl DirectionSampler for AsRadiance<'_> {
+        fn name(&self) -> &'static str {
+            "radiance"
+        }
+        fn sample(&self, rng: &mut dyn Rng) -> Option<Sample> {
+            let uc = uniform_f32(rng);
+            let u = Vec2::new(uniform_f32(rng), uniform_f32(rng));
+            self.0
+                .sample_as(Role::Radiance, self.1, uc, u, rng)
+                .unwrap()
+        }
+        fn pdf(&self, w: Vec3) -> f32 {
+            self.0.pdf_as(Role::Radiance, self.1, w).unwrap()
+        }
+    }
+    let strauss = model("strauss", &["smoothness=0.8", "metalness=0.5"]);
+    let baked = BakedSampler::new(strauss.clone(), small()).unwrap();
+    assert_eq!(baked.trees(), 2 * baked.grid().len());
+    let given = dir(52.3, 37.0);
+    let adjoint = Swap(strauss.clone());
+    let v = Validation::new(&adjoint, given, CellGrid::Square { res: 20 }, 1e-7).unwrap();
+    let r = v.test_chunked(
+        &AsRadiance(&baked, given),
+        1_000_000,
+        |k| Pcg64::seed_from_u64(k),
+        sidak(0.01, 2),
+    );
+    println!("strauss radiance: {:?} {:?}", r.chi2, r.chi2_own);
+    assert!(r.passed_own(), "{:?}", r.own_reasons);
+    // The forward tables would be the wrong density for this role: judged as if they were
+    // the adjoint's, they are rejected (the adjoint is not optional).
+    let r = v.test_chunked(
+        &baked.at(given).unwrap(),
+        1_000_000,
+        |k| Pcg64::seed_from_u64(k),
+        sidak(0.01, 2),
+    );
+    assert!(
+        !r.passed(),
+        "forward tables pass as the adjoint: {:?}",
+        r.chi2
+    );
+
+    let phong = model("phong", &["n=100"]);
+    let baked = BakedSampler::new(phong, small()).unwrap();
+    assert_eq!(baked.trees(), baked.grid().len());
+    let mut a = Pcg64::seed_from_u64(1);
+    let mut b = Pcg64::seed_from_u64(1);
+    for _ in 0..200 {
+        let (uc, u) = (
+            uniform_f32(&mut a),
+            Vec2::new(uniform_f32(&mut a), uniform_f32(&mut a)),
+        );
+        let _ = (
+            uniform_f32(&mut b),
+            uniform_f32(&mut b),
+            uniform_f32(&mut b),
+        );
+        let x = baked
+            .sample_as(Role::Importance, given, uc, u, &mut a)
+            .unwrap();
+        let y = baked
+            .sample_as(Role::Radiance, given, uc, u, &mut b)
+            .unwrap();
+        assert_eq!(x.map(|s| s.wo), y.map(|s| s.wo));
+    }
+}
+
+/// The world-frame wrapper is the local sampler seen through its frame.
+#[test]
+fn world_frame() {
+    let ward = model("ward", &["alpha_x=0.05", "alpha_y=0.2"]);
+    let baked = BakedSampler::new(ward.clone(), small()).unwrap();
+    let r = Quat::from_euler(glam::EulerRot::XYZ, 0.4, -1.1, 2.0);
+    let (n, t) = (r * Vec3::Z, r * Vec3::X);
+    let world = WorldBsdf::new(&baked, n, Some(t)).unwrap();
+    let wi_local = dir(40.0, 75.0);
+    let wi = r * wi_local;
+    let mut a = Pcg64::seed_from_u64(4);
+    let mut b = Pcg64::seed_from_u64(4);
+    for _ in 0..200 {
+        let (uc, u) = (0.37, Vec2::new(uniform_f32(&mut a), uniform_f32(&mut a)));
+        let _ = (uniform_f32(&mut b), uniform_f32(&mut b));
+        let sw = world.sample(Role::Importance, wi, uc, u, &mut a).unwrap();
+        let sl = baked
+            .sample(world.frame().to_local(wi), uc, u, &mut b)
+            .unwrap();
+        let (Some(sw), Some(sl)) = (sw, sl) else {
+            continue;
+        };
+        assert!(
+            (sw.wo - r * sl.wo).length() < 1e-5,
+            "{} vs {}",
+            sw.wo,
+            r * sl.wo
+        );
+        let p = world.pdf(Role::Importance, wi, sw.wo).unwrap();
+        assert!((p - sl.pdf).abs() <= 1e-3 * sl.pdf, "{p} vs {}", sl.pdf);
+        let f = world.eval(Role::Importance, wi, sw.wo).unwrap();
+        assert!((f - sl.f).abs().max_element() <= 1e-3 * sl.f.max_element());
+    }
+    assert!(WorldBsdf::new(&baked, Vec3::ZERO, None).is_err());
+}
+
+/// A bake with rayon (1 and 4 threads) is bit-identical to the serial bake.
+#[test]
+fn serial_and_parallel_bakes_are_identical() {
+    for (name, params) in [
+        ("ward", vec!["alpha_x=0.05", "alpha_y=0.2"]),
+        ("strauss", vec![]),
+    ] {
+        let b = model(name, &params);
+        let mut serial = small();
+        serial.build.parallel = false;
+        let reference = BakedSampler::new(b.clone(), serial).unwrap().to_bytes();
+        for threads in [1, 4] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let par = pool.install(|| BakedSampler::new(b.clone(), small()).unwrap());
+            assert!(par.to_bytes() == reference, "{name} on {threads} threads");
+        }
+    }
+}
+
+/// Round trip: a loaded bake is the same sampler (same bytes, same samples).
+#[test]
+fn bake_file_round_trip() {
+    for (name, params) in [
+        ("strauss", vec![]),
+        ("ward", vec!["alpha_x=0.05", "alpha_y=0.2"]),
+    ] {
+        let b = model(name, &params);
+        let baked = BakedSampler::new(b, small()).unwrap();
+        let bytes = baked.to_bytes();
+        let back = BakedSampler::from_bytes(&bytes).unwrap();
+        assert_eq!(back.to_bytes(), bytes);
+        assert_eq!(back.nodes(), baked.nodes());
+        let wi = dir(33.0, 71.0);
+        for mode in [BakedMode::Rejection, BakedMode::Warp] {
+            let (x, y) = (
+                BakedSampler::from_bytes(&bytes).unwrap().with_mode(mode),
+                BakedSampler::from_bytes(&bytes).unwrap().with_mode(mode),
+            );
+            let mut a = Pcg64::seed_from_u64(9);
+            let mut c = Pcg64::seed_from_u64(9);
+            for _ in 0..100 {
+                let u = Vec2::new(0.3, 0.8);
+                assert_eq!(
+                    x.sample(wi, 0.5, u, &mut a).unwrap(),
+                    y.sample(wi, 0.5, u, &mut c).unwrap()
+                );
+            }
+        }
+        let dir = std::env::temp_dir().join(format!("bake-{}-{name}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("m.bake");
+        baked.save(&path).unwrap();
+        let loaded = BakedSampler::load(&path).unwrap();
+        assert_eq!(loaded.to_bytes(), bytes);
+        // No temporary file is left beside it.
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        // A directory, a missing file: typed I/O errors.
+        assert!(BakedSampler::load(&dir).is_err());
+        assert!(BakedSampler::load(dir.join("missing")).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
+
+/// Every kind of damage is its own typed error, and none panics.
+#[test]
+fn damaged_bake_files_are_typed_errors() {
+    let b = model("phong", &["n=50"]);
+    let bytes = BakedSampler::new(
+        b,
+        BakeConfig {
+            theta_steps: 3,
+            ..BakeConfig::default()
+        },
+    )
+    .unwrap()
+    .to_bytes();
+    // Truncated anywhere.
+    for cut in [
+        0,
+        3,
+        8,
+        11,
+        12,
+        19,
+        20,
+        21,
+        bytes.len() / 2,
+        bytes.len() - 5,
+        bytes.len() - 1,
+    ] {
+        let e = BakedSampler::from_bytes(&bytes[..cut]).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                BakeFileError::Truncated { .. } | BakeFileError::NotABakeFile
+            ),
+            "cut at {cut}: {e:?}"
+        );
+    }
+    // Trailing bytes.
+    let mut long = bytes.clone();
+    long.push(0);
+    assert!(matches!(
+        BakedSampler::from_bytes(&long),
+        Err(BakeFileError::TrailingBytes { .. })
+    ));
+    // Every single bit flipped past the magic and version: checksum, length or decode errors.
+    let mut rng = Pcg64::seed_from_u64(5);
+    for _ in 0..2000 {
+        let mut x = bytes.clone();
+        let at = 12 + (rng.next_u64() as usize) % (bytes.len() - 12);
+        x[at] ^= 1 << (rng.next_u32() % 8);
+        let e = BakedSampler::from_bytes(&x).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                BakeFileError::Checksum { .. }
+                    | BakeFileError::Truncated { .. }
+                    | BakeFileError::TrailingBytes { .. }
+            ),
+            "flip at {at}: {e:?}"
+        );
+    }
+    // Another version, a foreign file, random bytes.
+    let mut v2 = bytes.clone();
+    v2[8] = 2;
+    assert!(matches!(
+        BakedSampler::from_bytes(&v2),
+        Err(BakeFileError::Version { found: 2, .. })
+    ));
+    assert!(matches!(
+        BakedSampler::from_bytes(b"\x89PNG\r\n\x1a\n0000000000000000000000"),
+        Err(BakeFileError::NotABakeFile)
+    ));
+    for len in [0usize, 7, 100, 10_000] {
+        let junk: Vec<u8> = (0..len).map(|_| rng.next_u32() as u8).collect();
+        assert!(BakedSampler::from_bytes(&junk).is_err());
+    }
+    // A well-formed file (valid checksum) whose records do not match: an unknown model, and
+    // garbage where the payload should be.
+    let reseal = |mut x: Vec<u8>| {
+        let n = x.len();
+        let crc = crc32fast::hash(&x[..n - 4]);
+        x[n - 4..].copy_from_slice(&crc.to_le_bytes());
+        x
+    };
+    let at = bytes.windows(5).position(|w| w == b"phong").unwrap();
+    let mut unknown = bytes.clone();
+    unknown[at..at + 5].copy_from_slice(b"phang");
+    assert!(matches!(
+        BakedSampler::from_bytes(&reseal(unknown)),
+        Err(BakeFileError::Model(_))
+    ));
+    let mut garbage = bytes.clone();
+    let n = garbage.len();
+    for b in &mut garbage[20..n - 4] {
+        *b = 0xff;
+    }
+    assert!(matches!(
+        BakedSampler::from_bytes(&reseal(garbage)),
+        Err(BakeFileError::Decode | BakeFileError::Model(_) | BakeFileError::Config(_))
+    ));
+    // A resealed file with a tree's child link pointing outside the arena: a tree error.
+    let mut bad_tree = bytes.clone();
+    let last_payload = n - 5;
+    bad_tree[last_payload] ^= 0x40;
+    let r = BakedSampler::from_bytes(&reseal(bad_tree));
+    assert!(r.is_err(), "a changed tree byte was accepted");
+}
+
+/// Bad input to the baked sampler is a typed error.
+#[test]
+fn bad_input_is_a_typed_error() {
+    let b = model("phong", &[]);
+    let baked = BakedSampler::new(
+        b,
+        BakeConfig {
+            theta_steps: 3,
+            ..BakeConfig::default()
+        },
+    )
+    .unwrap();
+    let mut rng = Pcg64::seed_from_u64(1);
+    for bad in [
+        Vec3::new(0.0, 0.0, -1.0),
+        Vec3::ZERO,
+        Vec3::new(f32::NAN, 0.0, 1.0),
+        Vec3::new(1.0, 0.0, 0.0),
+    ] {
+        assert!(matches!(
+            baked.sample(bad, 0.5, Vec2::splat(0.5), &mut rng),
+            Err(BakedError::Direction(_))
+        ));
+        assert!(baked.pdf(bad, Vec3::Z).is_err());
+    }
+    assert!(
+        baked
+            .pdf(Vec3::Z, Vec3::new(f32::INFINITY, 0.0, 1.0))
+            .is_err()
+    );
+    assert_eq!(baked.pdf(Vec3::Z, Vec3::new(0.0, 0.0, -1.0)).unwrap(), 0.0);
+    let mirror = model("mirror", &[]);
+    assert!(matches!(
+        BakedSampler::new(mirror, BakeConfig::default()),
+        Err(BakeError::DeltaModel("mirror"))
+    ));
+    let phong = model("phong", &[]);
+    for (t, p) in [(1, 9), (0, 9)] {
+        let c = BakeConfig {
+            theta_steps: t,
+            phi_steps: p,
+            ..BakeConfig::default()
+        };
+        assert!(matches!(
+            BakedSampler::new(phong.clone(), c),
+            Err(BakeError::ThetaSteps(_))
+        ));
+    }
+    let ward = model("ward", &["alpha_x=0.05", "alpha_y=0.2"]);
+    let c = BakeConfig {
+        phi_steps: 1,
+        ..BakeConfig::default()
+    };
+    assert!(matches!(
+        BakedSampler::new(ward.clone(), c),
+        Err(BakeError::PhiSteps { .. })
+    ));
+    let c = BakeConfig {
+        theta_steps: u16::MAX,
+        phi_steps: u16::MAX,
+        ..BakeConfig::default()
+    };
+    assert!(matches!(
+        BakedSampler::new(ward.clone(), c),
+        Err(BakeError::TooManyTrees(_))
+    ));
+    for d in [0.0, 1.0, f64::NAN, -0.1] {
+        let c = BakeConfig {
+            defensive: d,
+            ..BakeConfig::default()
+        };
+        assert!(matches!(
+            BakedSampler::new(ward.clone(), c),
+            Err(BakeError::Defensive(_))
+        ));
+    }
+}

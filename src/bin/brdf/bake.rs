@@ -1,0 +1,99 @@
+//! `brdf bake` (SPEC §7): a model's sampler at every incident direction, written to a file
+//! that `brdf sample|pdf|test --baked` read.
+
+use crate::CliError;
+use crate::sample::MapArg;
+use brdf_sampling::quadtree_sampler::{
+    BakeConfig, BakedSampler, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS,
+};
+use brdf_sampling::{Brdf, DiskMap};
+use serde_json::json;
+use std::io::{IsTerminal, Write};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// The options of `brdf bake`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct BakeArgs {
+    /// The bake file to write (complete or not at all: a temporary file renamed into place).
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+    /// Rows of trees in θi, from 0° to 89° (at least 2).
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_THETA_STEPS)]
+    theta_steps: u16,
+    /// Columns of trees in φi over the φ range the model's symmetries leave (anisotropic
+    /// models only; at least 2, or 3 on the full circle).
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_PHI_STEPS)]
+    phi_steps: u16,
+    /// Map of every grid tree.
+    #[arg(long, value_enum, default_value_t = MapArg::Orthographic)]
+    map: MapArg,
+    /// Refine each grid tree until its expected trials per sample are at most this.
+    #[arg(long, value_name = "T")]
+    target_trials: Option<f64>,
+}
+
+pub(crate) fn run(
+    brdf: Arc<dyn Brdf>,
+    args: &BakeArgs,
+    mut stdout: impl Write,
+) -> Result<(), CliError> {
+    let mut config = BakeConfig {
+        theta_steps: args.theta_steps,
+        phi_steps: args.phi_steps,
+        ..BakeConfig::default()
+    };
+    config.build.map = match args.map {
+        MapArg::Orthographic => DiskMap::Orthographic,
+        MapArg::Concentric => DiskMap::Concentric,
+    };
+    config.build.target_trials = args.target_trials;
+    if brdf.symmetry().isotropic && args.phi_steps != DEFAULT_PHI_STEPS {
+        eprintln!(
+            "brdf: warning: `{}` is isotropic here: one row of trees serves every φi, --phi-steps is ignored",
+            brdf.name()
+        );
+    }
+    // Progress on stderr only when it is a terminal, so that scripts see the same output.
+    let tty = std::io::stderr().is_terminal();
+    let progress = move |done: usize, total: usize| {
+        if tty {
+            eprint!("\rbaking: {done}/{total} trees");
+            if done == total {
+                eprintln!();
+            }
+        }
+    };
+    let t0 = Instant::now();
+    let baked = BakedSampler::new_with_progress(brdf.clone(), config, &progress)
+        .map_err(|e| CliError::Usage(format!("bake: {e}")))?;
+    let build_seconds = t0.elapsed().as_secs_f64();
+    baked
+        .save(&args.out)
+        .map_err(|e| CliError::Usage(format!("--out {e}")))?;
+    let file_bytes = std::fs::metadata(&args.out).map(|m| m.len()).ok();
+    let grid = baked.grid();
+    let summary = json!({
+        "model": brdf.name(),
+        "params": brdf.params().iter().map(|(s, v)| format!("{}={v}", s.name)).collect::<Vec<_>>(),
+        "file": args.out,
+        "trees": baked.trees(),
+        "nodes": baked.nodes(),
+        "bytes": baked.bytes(),
+        "file_bytes": file_bytes,
+        "build_seconds": build_seconds,
+        "adjoint": !brdf.symmetry().reciprocal,
+        "grid": {
+            "domain": format!("{:?}", grid.domain()).to_lowercase(),
+            "theta_deg": grid.thetas_deg(),
+            "phi_deg": grid.phis_deg(),
+        },
+        "map": config.build.map.name(),
+        "defensive": config.defensive,
+        "max_expected_trials": baked.expected_trials().into_iter().fold(0.0, f64::max),
+    });
+    serde_json::to_writer(&mut stdout, &summary).map_err(std::io::Error::from)?;
+    writeln!(stdout)?;
+    Ok(())
+}
