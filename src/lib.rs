@@ -21,6 +21,14 @@
 
 pub mod bench;
 
+/// The random number generator of the examples (PCG64) and the traits that seed it and draw
+/// from it: what the samplers' `rng` arguments take, re-exported so that the one dependency
+/// line of the README is the whole set-up.
+pub mod rng {
+    pub use rand_core::{Rng, SeedableRng};
+    pub use rand_pcg::Pcg64;
+}
+
 pub use brdf_core;
 pub use brdf_core::*;
 pub use quadtree_sampler;

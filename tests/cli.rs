@@ -552,3 +552,153 @@ fn bench_reports_ratios_from_unbiased_estimates() {
     let o = brdf(&["bench", "--samples", "1"], "");
     assert_eq!(o.status.code(), Some(2));
 }
+
+/// `brdf bake` writes a bake file and reports it; `sample`, `pdf` and `test` read it with
+/// `--baked` (SPEC §7); the pdf `brdf pdf --baked` prints is the one the records carry.
+#[test]
+fn bake_then_sample_pdf_and_test_baked() {
+    let dir = std::env::temp_dir().join(format!("brdf-cli-bake-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("phong.bake");
+    let f = file.to_str().unwrap();
+    let o = brdf(
+        &[
+            "bake",
+            "--model",
+            "phong",
+            "--param",
+            "n=300",
+            "--theta-steps",
+            "12",
+            "--out",
+            f,
+        ],
+        "",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["trees"].as_u64(), Some(12));
+    for key in ["nodes", "bytes", "build_seconds"] {
+        assert!(v[key].as_f64().unwrap() > 0.0, "{key}: {v}");
+    }
+    assert_eq!(v["grid"]["theta_deg"].as_array().unwrap().len(), 12);
+    assert_eq!(v["grid"]["theta_deg"][11].as_f64(), Some(89.0));
+    // Complete: only the bake file in the directory, no temporary left.
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+
+    let out = dir.join("s.bin");
+    let wi = "0.41,-0.2,0.75";
+    for mode in ["rejection", "warp"] {
+        let o = brdf(
+            &[
+                "sample",
+                "--baked",
+                f,
+                "--wi",
+                wi,
+                "--count",
+                "2000",
+                "--mode",
+                mode,
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            "",
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let s: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        assert_eq!(s["mode"], mode);
+        assert!(s["albedo_method"].as_str().unwrap().contains("mean weight"));
+        assert!(s["albedo"].as_f64().unwrap() > 0.0);
+        let recs = read_records(&out);
+        assert_eq!(recs.len(), 2000);
+        let input: String = recs
+            .iter()
+            .filter(|r| r[2] > 0.0)
+            .map(|r| format!("{:e} {:e} {:e}\n", r[0], r[1], r[2]))
+            .collect();
+        let o = brdf(&["pdf", "--baked", f, "--wi", wi, "--mode", mode], &input);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let pdfs: Vec<f32> = stdout(&o).lines().map(|l| l.parse().unwrap()).collect();
+        for (r, p) in recs.iter().filter(|r| r[2] > 0.0).zip(&pdfs) {
+            assert!(
+                (r[3] - p).abs() <= 1e-5 * p,
+                "record pdf {} vs brdf pdf {p}",
+                r[3]
+            );
+        }
+    }
+    let o = brdf(
+        &[
+            "test",
+            "--baked",
+            f,
+            "--wi",
+            "0.41,-0.2,0.75",
+            "--wi",
+            "0.99,0,0.1",
+            "--samples",
+            "200000",
+            "--json",
+        ],
+        "",
+    );
+    let t: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(t["against"], "own");
+    assert_eq!(t["weight_tests"].as_array().unwrap().len(), 2);
+    assert!(o.status.success(), "{t}");
+
+    // Bad input: a missing, a truncated or a foreign file; a mode a bake has no tables for;
+    // a --model that is not the bake's. Each exits 2 with a message.
+    let truncated = dir.join("t.bake");
+    let bytes = std::fs::read(&file).unwrap();
+    std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
+    let missing = dir.join("missing.bake");
+    for args in [
+        vec![
+            "sample",
+            "--baked",
+            missing.to_str().unwrap(),
+            "--wi",
+            wi,
+            "--count",
+            "1",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        vec!["pdf", "--baked", truncated.to_str().unwrap(), "--wi", wi],
+        vec!["pdf", "--baked", out.to_str().unwrap(), "--wi", wi],
+        vec!["pdf", "--baked", f, "--wi", wi, "--mode", "cosine"],
+        vec![
+            "pdf", "--baked", f, "--wi", wi, "--model", "phong", "--param", "n=301",
+        ],
+        vec!["pdf", "--baked", f, "--wi", "0,0,-1"],
+        vec![
+            "bake",
+            "--model",
+            "mirror",
+            "--out",
+            dir.join("m.bake").to_str().unwrap(),
+        ],
+        vec![
+            "bake",
+            "--model",
+            "phong",
+            "--theta-steps",
+            "1",
+            "--out",
+            dir.join("m.bake").to_str().unwrap(),
+        ],
+    ] {
+        let o = brdf(&args, "");
+        assert_eq!(
+            o.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(!o.stderr.is_empty(), "{args:?}");
+    }
+    assert!(!dir.join("m.bake").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -1,5 +1,6 @@
 //! The workspace's integration tests, one binary (so they link once).
 
 mod cli;
+mod readme;
 mod reference;
 mod validation;

@@ -290,10 +290,13 @@ impl PhiDomain {
         let sy = if w.y < 0.0 { -1.0 } else { 1.0 };
         match self {
             Self::Rotation => {
-                if w.x == 0.0 && w.y == 0.0 {
+                let r = m::sqrt(w.x * w.x + w.y * w.y);
+                if r == 0.0 {
                     DMat3::IDENTITY
                 } else {
-                    DMat3::from_rotation_z(-m::atan2(w.y, w.x))
+                    // The rotation about z by −φ, from cos φ and sin φ without trigonometry.
+                    let (c, s) = (w.x / r, w.y / r);
+                    DMat3::from_cols(DVec3::new(c, -s, 0.0), DVec3::new(s, c, 0.0), DVec3::Z)
                 }
             }
             Self::Quadrant => DMat3::from_diagonal(DVec3::new(sx, sy, 1.0)),
@@ -614,8 +617,8 @@ impl Slice {
     }
 
     fn bytes(&self) -> usize {
-        self.tree.nodes().len() * core::mem::size_of::<crate::PackedNode>()
-            + self.warp.nodes.len() * core::mem::size_of::<WarpNode>()
+        core::mem::size_of_val(self.tree.nodes())
+            + core::mem::size_of_val(self.warp.nodes.as_slice())
             + core::mem::size_of::<Self>()
     }
 }
@@ -953,12 +956,20 @@ impl BakedSampler {
     /// sample carries and the pdf of the same f32 vector asked for later are bit-identical
     /// (renormalising in f32 could move a direction on a leaf's edge into its neighbour).
     fn pdf_unit(&self, role: Role, given: Vec3, sampled: Vec3) -> f32 {
-        let wo = sampled.as_dvec3().normalize_or_zero();
-        if !(wo.z > 0.0) {
-            return 0.0;
-        }
         let (tables, adjoint) = self.tables_for(role);
         let (comps, n) = self.components(tables, given);
+        self.pdf_of(tables, adjoint, &comps[..n], sampled)
+    }
+
+    /// The mixture's density at `sampled` from its components (the one expression behind
+    /// `pdf` and the pdf a sample carries).
+    fn pdf_of(&self, tables: &Tables, adjoint: bool, comps: &[Component], sampled: Vec3) -> f32 {
+        let n = comps.len();
+        let wo = sampled.as_dvec3().normalize_or_zero();
+        // (NaN fails too: normalize_or_zero gives 0 for it.)
+        if wo.z <= 0.0 {
+            return 0.0;
+        }
         let delta = if n == 0 { 1.0 } else { self.config.defensive };
         let mut p = delta * wo.z * core::f64::consts::FRAC_1_PI;
         for c in &comps[..n] {
@@ -1051,7 +1062,7 @@ impl BakedSampler {
         if !above_horizon(wo) {
             return None;
         }
-        let pdf = self.pdf_unit(role, given, wo);
+        let pdf = self.pdf_of(tables, adjoint, &comps[..n], wo);
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
@@ -1125,8 +1136,10 @@ impl BakedSampler {
     /// f_r for a role (continuous part, RGB, 1/sr, no cosine): f_r(given, sampled) for
     /// [`Role::Importance`], f_r(sampled, given) for [`Role::Radiance`].
     pub fn eval_as(&self, role: Role, given: Vec3, sampled: Vec3) -> Result<Vec3, BakedError> {
-        let given = brdf_core::geometry::unit_direction(given)?;
-        let sampled = brdf_core::geometry::unit_direction(sampled)?;
+        // Checked, not renormalised here: the models renormalise in f64, so a sample's `f`
+        // and `eval` of the same f32 vectors are bit-identical.
+        brdf_core::geometry::unit_direction(given)?;
+        brdf_core::geometry::unit_direction(sampled)?;
         Ok(self.eval_unit(role, given, sampled))
     }
 

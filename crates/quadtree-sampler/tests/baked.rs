@@ -325,7 +325,7 @@ fn transport_roles() {
     let r = v.test_chunked(
         &AsRadiance(&baked, given),
         1_000_000,
-        |k| Pcg64::seed_from_u64(k),
+        Pcg64::seed_from_u64,
         sidak(0.01, 2),
     );
     println!("strauss radiance: {:?} {:?}", r.chi2, r.chi2_own);
@@ -335,7 +335,7 @@ fn transport_roles() {
     let r = v.test_chunked(
         &baked.at(given).unwrap(),
         1_000_000,
-        |k| Pcg64::seed_from_u64(k),
+        Pcg64::seed_from_u64,
         sidak(0.01, 2),
     );
     assert!(

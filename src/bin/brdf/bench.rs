@@ -6,11 +6,13 @@
 use crate::CliError;
 use brdf_sampling::bench::{self, Environment, Estimate};
 use brdf_sampling::quadtree_sampler::{
-    Baseline, BaselineSampler, BuildConfig, DEFAULT_MIX, DEFAULT_TABLE_RES, DirectionSampler,
-    QuadtreeSampler, TableSampler, WarpSampler,
+    BakeConfig, BakedMode, BakedSampler, Baseline, BaselineSampler, BuildConfig, DEFAULT_MIX,
+    DEFAULT_TABLE_RES, DirectionSampler, QuadtreeSampler, TableSampler, WarpSampler, uniform_f32,
 };
+use rand_core::SeedableRng;
 use serde_json::{Value, json};
 use std::io::Write;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Samples a build is amortised over in the efficiency figures.
@@ -119,6 +121,7 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
         * 1e9;
     let mut rows = Vec::new();
     let mut table = String::new();
+    let mut baked_table = String::new();
     for &(label, name, params) in bench::SETS {
         if args.quick && !bench::QUICK_SETS.contains(&label) {
             continue;
@@ -173,7 +176,81 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
         let t0 = Instant::now();
         let t = TableSampler::new(b, wi, DEFAULT_TABLE_RES)?;
         measure("table", t0.elapsed().as_secs_f64(), &t);
+        // The baked sampler (SPEC §7): baked once per material, so its bake is not amortised
+        // over one wi's samples here (its own columns give it); sampled at the benches' wi,
+        // which is off its grid.
+        let arc: Arc<dyn brdf_sampling::Brdf> = bench::model(name, params)?.into();
+        let bake = |parallel: bool| {
+            let mut c = BakeConfig::default();
+            c.build.parallel = parallel;
+            let t0 = Instant::now();
+            let r = BakedSampler::new(arc.clone(), c);
+            (t0.elapsed().as_secs_f64(), r)
+        };
+        let (bake_rayon, baked) = bake(true);
+        let baked = baked.map_err(|e| CliError::Usage(format!("bake {label}: {e}")))?;
+        // A serial bake of the costly models takes a minute: not with --quick.
+        let bake_serial = (!(args.quick && bench::COSTLY.contains(&name)))
+            .then(|| serial.install(|| bake(false)).0);
+        let baked_warp = BakedSampler::from_bytes(&baked.to_bytes())
+            .map_err(|e| CliError::Usage(format!("bake {label}: {e}")))?
+            .with_mode(BakedMode::Warp);
+        measure(
+            "baked-rejection",
+            0.0,
+            &baked.at(wi).map_err(|e| CliError::Usage(e.to_string()))?,
+        );
+        measure(
+            "baked-warp",
+            0.0,
+            &baked_warp
+                .at(wi)
+                .map_err(|e| CliError::Usage(e.to_string()))?,
+        );
+        let random = random_wi_timing(&baked, &baked_warp, samples.min(300_000), args.seed);
         let get = |n: &str| measured.iter().find(|m| m.name == n);
+        {
+            let (br, bw, qm, ana) = (
+                get("baked-rejection").expect("measured"),
+                get("baked-warp").expect("measured"),
+                get("quadtree").expect("measured"),
+                get("analytic").expect("measured"),
+            );
+            let e = |a: &Measured, b: &Measured| a.efficiency(0) / b.efficiency(0);
+            use std::fmt::Write as _;
+            let _ = writeln!(
+                baked_table,
+                "| {label} | {} | {} | {} | {:.2} | {} | {:.0} | {:.2} | {:.0} | {:.2} | {:.0} | {:.0} | {} | {} | {} | {} |",
+                baked.trees(),
+                baked.nodes(),
+                baked.bytes(),
+                bake_rayon,
+                bake_serial.map_or_else(|| "–".into(), |t| format!("{t:.2}")),
+                random.rejection_ns,
+                random.rejection_ns / beckmann_ns,
+                random.warp_ns,
+                random.warp_ns / beckmann_ns,
+                random.pdf_ns,
+                random.warp_pdf_ns,
+                ratio(e(br, ana)),
+                ratio(e(br, qm)),
+                ratio(e(bw, ana)),
+                ratio(e(bw, qm)),
+            );
+        }
+        let baked_json = json!({
+            "trees": baked.trees(),
+            "nodes": baked.nodes(),
+            "bytes": baked.bytes(),
+            "bake_seconds_rayon": bake_rayon,
+            "bake_seconds_serial": bake_serial,
+            "random_wi_ns_per_sample_rejection": random.rejection_ns,
+            "random_wi_ns_per_sample_warp": random.warp_ns,
+            "random_wi_pdf_ns_rejection": random.pdf_ns,
+            "random_wi_pdf_ns_warp": random.warp_pdf_ns,
+            "time_baked_rejection_over_beckmann": random.rejection_ns / beckmann_ns,
+            "time_baked_warp_over_beckmann": random.warp_ns / beckmann_ns,
+        });
         let (qm, cos, ana, tab) = (
             get("quadtree").expect("measured"),
             get("cosine").expect("measured"),
@@ -201,6 +278,7 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
             "target_expected_trials": target.as_ref().map(|s| s.expected_trials),
             "target_nodes": target.as_ref().map(|s| s.nodes),
             "samplers": measured.iter().map(Measured::json).collect::<Vec<_>>(),
+            "baked": baked_json,
             "ratios": {
                 "time_quadtree_over_analytic": ns(qm) / ns(ana),
                 "time_quadtree_over_beckmann": ns(qm) / beckmann_ns,
@@ -212,6 +290,10 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
                 "efficiency_target_over_analytic": tgt.map(|t| eff(t, ana)),
                 "glint_efficiency_quadtree_over_cosine": glint(qm, cos),
                 "glint_efficiency_quadtree_over_analytic": glint(qm, ana),
+                "efficiency_baked_over_analytic": get("baked-rejection").map(|m| eff(m, ana)),
+                "efficiency_baked_over_quadtree": get("baked-rejection").map(|m| eff(m, qm)),
+                "efficiency_baked_warp_over_analytic": get("baked-warp").map(|m| eff(m, ana)),
+                "efficiency_baked_warp_over_quadtree": get("baked-warp").map(|m| eff(m, qm)),
             },
         }));
         let opt = |v: Option<f64>, p: usize| v.map_or_else(|| "–".into(), |v| format!("{v:.p$}"));
@@ -275,8 +357,77 @@ the Beckmann analytic sample (cook-torrance m = 0.1) takes {beckmann_ns:.0} ns.\
             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
         )?;
         write!(stdout, "{table}")?;
+        writeln!(
+            stdout,
+            "\nThe baked sampler (SPEC §7, default grid), sampled with a new random wi (cosine-distributed) per sample as a renderer calls it; \
+efficiencies at the benches' wi (off the grid), the bake not amortised (it is once per material).\n"
+        )?;
+        writeln!(
+            stdout,
+            "| set | trees | nodes | bytes | bake s (rayon) | bake s (1 thread) | ns/sample rejection | /Beckmann | ns/sample warp | /Beckmann | pdf ns rejection | pdf ns warp | efficiency baked/analytic | baked/exact tree | warp/analytic | warp/exact tree |"
+        )?;
+        writeln!(
+            stdout,
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        )?;
+        write!(stdout, "{baked_table}")?;
     }
     Ok(())
+}
+
+/// Time per sample and per pdf of a baked sampler with a new incident direction for every
+/// call (cosine-distributed, seeded, drawn before the clock starts).
+struct RandomWi {
+    rejection_ns: f64,
+    warp_ns: f64,
+    pdf_ns: f64,
+    warp_pdf_ns: f64,
+}
+
+fn random_wi_timing(baked: &BakedSampler, warp: &BakedSampler, n: u64, seed: u64) -> RandomWi {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed ^ 0x5eed);
+    let inputs: Vec<_> = (0..n)
+        .map(|_| {
+            let wi = brdf_sampling::warp::sample_cosine_hemisphere(brdf_sampling::glam::Vec2::new(
+                uniform_f32(&mut rng),
+                uniform_f32(&mut rng),
+            ));
+            let u = brdf_sampling::glam::Vec2::new(uniform_f32(&mut rng), uniform_f32(&mut rng));
+            (wi, uniform_f32(&mut rng), u)
+        })
+        .collect();
+    let time = |b: &BakedSampler| {
+        let mut r = rand_pcg::Pcg64::seed_from_u64(seed);
+        let mut out = Vec::with_capacity(inputs.len());
+        let t0 = Instant::now();
+        for &(wi, uc, u) in &inputs {
+            out.push(b.sample(wi, uc, u, &mut r).ok().flatten().map(|s| s.wo));
+        }
+        let ns = t0.elapsed().as_secs_f64() * 1e9 / n as f64;
+        let pairs: Vec<_> = inputs
+            .iter()
+            .zip(&out)
+            .filter_map(|(&(wi, _, _), wo)| wo.map(|wo| (wi, wo)))
+            .collect();
+        let t0 = Instant::now();
+        let mut acc = 0.0f32;
+        for &(wi, wo) in &pairs {
+            acc += b.pdf(wi, wo).unwrap_or(0.0);
+        }
+        std::hint::black_box(acc);
+        (
+            ns,
+            t0.elapsed().as_secs_f64() * 1e9 / pairs.len().max(1) as f64,
+        )
+    };
+    let (rejection_ns, pdf_ns) = time(baked);
+    let (warp_ns, warp_pdf_ns) = time(warp);
+    RandomWi {
+        rejection_ns,
+        warp_ns,
+        pdf_ns,
+        warp_pdf_ns,
+    }
 }
 
 /// A ratio with 3 significant digits.
