@@ -940,8 +940,7 @@ mod symmetry {
     fn refuted(b: &dyn Brdf, seed: u64) -> Option<&'static str> {
         let s = b.symmetry();
         let mut rng = Pcg64::seed_from_u64(seed);
-        let any =
-            |rng: &mut Pcg64| dir(rng.random_range(0.0..85.0), rng.random_range(0.0..360.0));
+        let any = |rng: &mut Pcg64| dir(rng.random_range(0.0..85.0), rng.random_range(0.0..360.0));
         for _ in 0..400 {
             let (wi, wo) = (any(&mut rng), any(&mut rng));
             let f = b.eval(wi, wo);

@@ -30,6 +30,13 @@
 //!   trials (E\[T\] ≤ 2 with the seed's rule, tunable by the target-trials mode) and of
 //!   discontinuity: it cannot warp stratified points.
 //!
+//! Beyond the seed, for renderers: [`BakedSampler`] bakes a model once (a grid of trees over
+//! the incident directions, folded by the model's declared symmetries) and answers `sample`,
+//! `pdf` and `eval` at any `wi` with the exact density of what it drew (a mixture of the
+//! neighbouring trees, each rotated onto `wi`'s mirror direction), in both transport roles,
+//! in rejection or warp mode, in the local frame or through [`WorldBsdf`]; bake files keep it
+//! on disk ([`BakedSampler::save`], [`BakedSampler::load`]).
+//!
 //! Beyond the seed, for exactness: node integrals use charts in which the disk's rim is a
 //! coordinate boundary (see [`chart`]), and leaves on the rim are rejection-sampled in those
 //! charts, where f·Jacobian stays bounded even for models that grow as 1/√cos θ (Ward).
