@@ -13,8 +13,8 @@ use brdf_core::{Brdf, DiskMap};
 use glam::{DVec2, Vec2, Vec3};
 use quadtree_sampler::validate::{CellGrid, Validation};
 use quadtree_sampler::{
-    Baseline, BaselineSampler, BuildConfig, DEFAULT_MIX, DirectionSampler, Quadtree,
-    QuadtreeSampler, TreeStats, WarpSampler,
+    BakeConfig, BakedSampler, Baseline, BaselineSampler, BuildConfig, DEFAULT_BAKE_NODE_BUDGET,
+    DEFAULT_MIX, DirectionSampler, Quadtree, QuadtreeSampler, TreeStats, WarpSampler,
 };
 use rand_core::SeedableRng;
 use std::sync::Arc;
@@ -41,16 +41,21 @@ pub enum SamplerKind {
     Uniform,
     /// The model's own analytic sampler (a baseline).
     Analytic,
+    /// The baked sampler of SPEC §7 (rejection mode): trees at a grid of incident directions,
+    /// baked once per model, parameters and build options, sampled at the current wi (off
+    /// its grid as the user drags) through the exact mixture of its rotated neighbours.
+    Baked,
 }
 
 impl SamplerKind {
     /// Every kind, in the order the UI lists them.
-    pub const ALL: [Self; 5] = [
+    pub const ALL: [Self; 6] = [
         Self::Rejection,
         Self::Warp,
         Self::Cosine,
         Self::Uniform,
         Self::Analytic,
+        Self::Baked,
     ];
 
     /// The name the `brdf` CLI uses for this mode.
@@ -62,6 +67,7 @@ impl SamplerKind {
             Self::Cosine => "cosine",
             Self::Uniform => "uniform",
             Self::Analytic => "analytic",
+            Self::Baked => "baked",
         }
     }
 }
@@ -336,8 +342,30 @@ pub fn process(req: &Request, live: &dyn Fn() -> bool, send: &dyn Fn(Update)) {
     if !live() {
         return;
     }
+    let baked = if req.sampler == SamplerKind::Baked {
+        match baked_for(req) {
+            Ok(b) => Some(b),
+            Err(e) => {
+                send(Update::Failed(g, e));
+                return;
+            }
+        }
+    } else {
+        None
+    };
+    if !live() {
+        return;
+    }
     let other: Option<Box<dyn DirectionSampler + '_>> = match req.sampler {
         SamplerKind::Rejection => None,
+        SamplerKind::Baked => match baked.as_ref().map(|b| b.at(req.wi)) {
+            Some(Ok(at)) => Some(Box::new(at)),
+            Some(Err(e)) => {
+                send(Update::Failed(g, e.to_string()));
+                return;
+            }
+            None => return,
+        },
         SamplerKind::Warp => match WarpSampler::new(brdf, req.wi, req.config, DEFAULT_MIX) {
             Ok(s) => Some(Box::new(s)),
             Err(e) => {
@@ -399,6 +427,38 @@ pub fn process(req: &Request, live: &dyn Fn() -> bool, send: &dyn Fn(Update)) {
         }
     }
     send(Update::Done(g));
+}
+
+/// The last bake, by model, parameters and build options: a drag of wi (or of the sample
+/// count, the cells, the seed) reuses it; any other change bakes again.
+static BAKE: std::sync::Mutex<Option<(String, Arc<BakedSampler>)>> = std::sync::Mutex::new(None);
+
+/// The bake for a request's model and options (from the cache when it is the last one).
+fn baked_for(req: &Request) -> Result<Arc<BakedSampler>, String> {
+    let key = format!(
+        "{} {:?} {:?}",
+        req.brdf.name(),
+        req.brdf.params(),
+        req.config
+    );
+    let mut cache = BAKE
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    if let Some((k, b)) = cache.as_ref()
+        && *k == key
+    {
+        return Ok(b.clone());
+    }
+    let config = BakeConfig {
+        build: BuildConfig {
+            node_budget: req.config.node_budget.min(DEFAULT_BAKE_NODE_BUDGET),
+            ..req.config
+        },
+        ..BakeConfig::default()
+    };
+    let b = Arc::new(BakedSampler::new(req.brdf.clone(), config).map_err(|e| e.to_string())?);
+    *cache = Some((key, b.clone()));
+    Ok(b)
 }
 
 /// The centre of pixel `k` (row-major, row 0 at v = +1) of a `res`² image of the square
