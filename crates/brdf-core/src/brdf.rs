@@ -7,7 +7,9 @@ use crate::warp::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
 use core::fmt;
 use glam::{Vec2, Vec3};
 
-/// One sampled outgoing direction with everything an estimator needs (pbrt's `BSDFSample`).
+/// One sampled direction with everything an estimator needs (pbrt's `BSDFSample`): the one
+/// sample type of every sampler in the workspace (the models' analytic samplers, the
+/// quadtree, the baselines, the baked sampler; `quadtree_sampler::Sample` is this type).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BrdfSample {
     /// The sampled outgoing direction, local frame, unit, z > 0.
@@ -22,6 +24,8 @@ pub struct BrdfSample {
     pub weight: Vec3,
     /// True when `wo` came from a Dirac delta lobe (its pdf is not a density).
     pub delta: bool,
+    /// Rejection trials spent on this sample (1 for samplers without rejection).
+    pub trials: u32,
 }
 
 impl BrdfSample {
@@ -39,6 +43,7 @@ impl BrdfSample {
             f,
             weight: f * (wo.z / pdf),
             delta: false,
+            trials: 1,
         })
     }
 
@@ -56,6 +61,7 @@ impl BrdfSample {
             f: reflectance / wo.z,
             weight: reflectance / choice_probability,
             delta: true,
+            trials: 1,
         })
     }
 }

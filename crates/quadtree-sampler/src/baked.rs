@@ -1108,10 +1108,11 @@ impl BakedSampler {
             return Ok(self.sample_unit(role, given, uc, u, rng));
         }
         if uc < p {
-            return Ok(
-                BrdfSample::delta(mirror(given), self.brdf.delta_reflectance(given), p)
-                    .map(Sample::from),
-            );
+            return Ok(BrdfSample::delta(
+                mirror(given),
+                self.brdf.delta_reflectance(given),
+                p,
+            ));
         }
         let uc = ((uc - p) / (1.0 - p)).min(1.0 - f32::EPSILON / 2.0);
         Ok(self.sample_unit(role, given, uc, u, rng).map(|s| {

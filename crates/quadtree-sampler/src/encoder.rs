@@ -91,7 +91,7 @@ pub fn refleja<B: Brdf + ?Sized, R: Rng + ?Sized>(
             uniform_f32(rng),
             Vec2::new(uniform_f32(rng), uniform_f32(rng)),
         );
-        return Ok(s.map(Sample::from).map(to_world));
+        return Ok(s.map(to_world));
     }
     let sampler = QuadtreeSampler::new(brdf, wi_l, BuildConfig::default())?;
     let rho = sampler.albedo() as f32;
@@ -102,7 +102,7 @@ pub fn refleja<B: Brdf + ?Sized, R: Rng + ?Sized>(
     };
     if p_delta > 0.0 && uniform_f32(rng) < p_delta {
         let s = BrdfSample::delta(mirror(wi_l), brdf.delta_reflectance(wi_l), p_delta);
-        return Ok(s.map(Sample::from).map(to_world));
+        return Ok(s.map(to_world));
     }
     Ok(sampler.sample(rng).map(|s| {
         let pdf = s.pdf * (1.0 - p_delta);

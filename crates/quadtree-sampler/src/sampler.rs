@@ -24,36 +24,10 @@ pub fn uniform_f32<R: Rng + ?Sized>(rng: &mut R) -> f32 {
     (rng.next_u32() >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
 }
 
-/// One sampled outgoing direction (local frame), as every sampler here returns it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Sample {
-    /// The direction, unit, z > 0.
-    pub wo: Vec3,
-    /// Density of `wo` **per unit solid angle** (for a delta sample: the probability with
-    /// which the delta lobe was chosen).
-    pub pdf: f32,
-    /// f_r(wi, wo), RGB, 1/sr (for a delta sample: reflectance / cos θo).
-    pub f: Vec3,
-    /// The estimator weight f·cos θo / pdf, RGB.
-    pub weight: Vec3,
-    /// Whether `wo` came from a Dirac delta lobe.
-    pub delta: bool,
-    /// Rejection trials spent on this sample (1 for samplers without rejection).
-    pub trials: u32,
-}
-
-impl From<BrdfSample> for Sample {
-    fn from(s: BrdfSample) -> Self {
-        Self {
-            wo: s.wo,
-            pdf: s.pdf,
-            f: s.f,
-            weight: s.weight,
-            delta: s.delta,
-            trials: 1,
-        }
-    }
-}
+/// One sampled outgoing direction (local frame), as every sampler here returns it: the
+/// workspace's one sample type, [`BrdfSample`] (wo, pdf per unit solid angle, f, weight, the
+/// delta flag and the rejection trials).
+pub type Sample = BrdfSample;
 
 /// A sampler of outgoing directions for one fixed incident direction: the quadtree, the
 /// baselines, or a user's own. Pure function of the random numbers drawn from `rng`.
@@ -331,17 +305,13 @@ impl<'a, B: Brdf + ?Sized> BaselineSampler<'a, B> {
         let uc = uniform_f32(rng);
         let u = Vec2::new(uniform_f32(rng), uniform_f32(rng));
         match self.kind {
-            Baseline::Analytic => self
-                .brdf
-                .sample_continuous(self.wi, uc, u)
-                .map(Sample::from),
+            Baseline::Analytic => self.brdf.sample_continuous(self.wi, uc, u),
             Baseline::Uniform | Baseline::Cosine => {
                 let wo = match self.kind {
                     Baseline::Uniform => brdf_core::warp::sample_uniform_hemisphere(u),
                     _ => brdf_core::warp::sample_cosine_hemisphere(u),
                 };
                 BrdfSample::continuous(wo, self.brdf.eval(self.wi, wo), self.pdf(wo))
-                    .map(Sample::from)
             }
         }
     }

@@ -144,7 +144,7 @@ impl<'a, B: Brdf + ?Sized> TableSampler<'a, B> {
         let wo = DiskMap::Concentric.square_to_direction(p)?;
         // The pdf of the returned f32 direction, by the same expression as `pdf`.
         let pdf = self.pdf(wo);
-        BrdfSample::continuous(wo, self.brdf.eval(self.wi, wo), pdf).map(Sample::from)
+        BrdfSample::continuous(wo, self.brdf.eval(self.wi, wo), pdf)
     }
 
     /// Density per unit solid angle: the cell's value × `scale` per unit square area, times
