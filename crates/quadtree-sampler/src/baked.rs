@@ -114,7 +114,12 @@ pub enum BakedMode {
     /// Rejection in the chosen leaf (exact ∝ Y(f_r)·cos θ per tree; an RNG draws the trials).
     #[default]
     Rejection,
-    /// The piecewise-constant proxy, a deterministic function of (uc, u).
+    /// The piecewise-constant proxy, a deterministic function of (uc, u). Each leaf's share
+    /// is spread over its whole square, so over the orthographic map (the default) the part
+    /// of a rim leaf outside the disk is lost: up to 1 − π/4 ≈ 21 % of the samples for a
+    /// diffuse lobe (measured: lambert 21.6 %), next to nothing for a sharp one. A bake over
+    /// the concentric map (`BuildConfig::map`, `brdf bake --map concentric`) loses nothing
+    /// (lambert 0.01 %), at a higher E\[T\] for rejection mode (lambert 2.0 against 1.3).
     Warp,
 }
 
