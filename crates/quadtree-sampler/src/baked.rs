@@ -463,6 +463,20 @@ impl BakeGrid {
     }
 }
 
+/// The rotation about y that carries the mirror direction of `from` onto that of `to`, both
+/// in the xz-plane with x ≥ 0 (an isotropic grid's directions, and a wi folded onto φ = 0):
+/// the rotation by θ_from − θ_to, from the directions' sines and cosines without
+/// trigonometry. Equal to `DQuat::from_rotation_arc` of the two mirrors (a test says so),
+/// at a fraction of its cost: it runs for every neighbour of every `sample` and `pdf`.
+/// Both are unit vectors (to rounding): their x and z are their polar angles' sine and cosine.
+#[inline]
+fn rotation_between_mirrors_xz(from: DVec3, to: DVec3) -> DMat3 {
+    let (sf, cf) = (from.x, from.z);
+    let (st, ct) = (to.x, to.z);
+    let (ca, sa) = (cf * ct + sf * st, sf * ct - cf * st);
+    DMat3::from_cols(DVec3::new(ca, 0.0, -sa), DVec3::Y, DVec3::new(sa, 0.0, ca))
+}
+
 /// One grid tree's warp proxy: per node, the first child (or [`WARP_LEAF`]) and its share of
 /// the tree's volume (f32). 8 bytes a node.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -918,8 +932,12 @@ impl BakedSampler {
                 continue;
             }
             let wk = tables.slices[slice].wi.as_dvec3();
-            let mk = DVec3::new(-wk.x, -wk.y, wk.z).normalize();
-            let rot = DMat3::from_quat(DQuat::from_rotation_arc(mk, mc.normalize()));
+            let rot = if self.grid.domain == PhiDomain::Rotation {
+                rotation_between_mirrors_xz(wk, gc)
+            } else {
+                let mk = DVec3::new(-wk.x, -wk.y, wk.z).normalize();
+                DMat3::from_quat(DQuat::from_rotation_arc(mk, mc.normalize()))
+            };
             out[n] = Component {
                 slice,
                 weight: w,
@@ -1377,5 +1395,33 @@ impl<'a> WorldBsdf<'a> {
             self.frame.to_local(given),
             self.frame.to_local(sampled),
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The isotropic fast path is the minimal rotation between the two mirror directions.
+    #[test]
+    fn the_xz_rotation_is_the_rotation_arc_of_the_mirrors() {
+        for (a, b) in [
+            (0.0f64, 0.3f64),
+            (0.3, 0.0),
+            (1.2, 0.4),
+            (0.05, 1.55),
+            (1.55, 1.5),
+            (0.7, 0.7),
+        ] {
+            let from = DVec3::new(a.sin(), 0.0, a.cos());
+            let to = DVec3::new(b.sin(), 0.0, b.cos());
+            let m = |w: DVec3| DVec3::new(-w.x, -w.y, w.z);
+            let arc = DMat3::from_quat(DQuat::from_rotation_arc(m(from), m(to)));
+            let fast = rotation_between_mirrors_xz(from, to);
+            assert!((fast * m(from) - m(to)).length() < 1e-12);
+            for v in [DVec3::X, DVec3::Y, DVec3::Z, DVec3::new(0.3, -0.4, 0.866)] {
+                assert!((arc * v - fast * v).length() < 1e-12, "{a} {b} {v}");
+            }
+        }
     }
 }
