@@ -425,8 +425,9 @@ impl BakeGrid {
 
     /// The neighbouring trees of a folded direction `w` (unit, z > 0) and their weights
     /// (summing to 1; linear in θ, bilinear in (θ, φ)); unused entries have weight 0.
+    #[inline]
     fn neighbours(&self, w: DVec3) -> [(usize, f64); 4] {
-        let theta = m::acos(w.z.clamp(-1.0, 1.0));
+        let theta = fast_acos(w.z);
         let nt = self.thetas.len();
         let dt = self.thetas[1] - self.thetas[0];
         let t = (theta / dt).clamp(0.0, (nt - 1) as f64);
@@ -461,6 +462,18 @@ impl BakeGrid {
             (at(i + 1, j1), ft * fp),
         ]
     }
+}
+
+/// acos(x) for x ∈ [−1, 1] to within 7·10⁻⁵ rad (Abramowitz & Stegun 4.4.45), without a
+/// libm call. The neighbour weights may be any function of wi that `sample` and `pdf` share
+/// (the mixture is exact whatever they are), so its error costs nothing but a shift of the
+/// weights by less than 0.01 % of a grid step.
+#[inline]
+fn fast_acos(x: f64) -> f64 {
+    let a = x.abs().min(1.0);
+    let p =
+        m::sqrt(1.0 - a) * (1.570_728_8 + a * (-0.212_114_4 + a * (0.074_261_0 - 0.018_729_3 * a)));
+    if x >= 0.0 { p } else { PI - p }
 }
 
 /// The rotation about y that carries the mirror direction of `from` onto that of `to`, both
@@ -909,6 +922,7 @@ impl BakedSampler {
     }
 
     /// The components of the mixture at a given (checked, unit) direction.
+    #[inline(always)]
     fn components(&self, tables: &Tables, given: Vec3) -> ([Component; 4], usize) {
         let g = given.as_dvec3();
         let fold = self.grid.domain.fold(g);
@@ -953,6 +967,7 @@ impl BakedSampler {
     }
 
     /// Component `c`'s density at local `wo`, per unit solid angle.
+    #[inline]
     fn component_pdf(&self, tables: &Tables, adjoint: bool, c: &Component, wo: DVec3) -> f64 {
         let w = c.to_local.transpose() * wo;
         if w.z <= 0.0 {
@@ -1403,6 +1418,14 @@ mod tests {
     use super::*;
 
     /// The isotropic fast path is the minimal rotation between the two mirror directions.
+    #[test]
+    fn fast_acos_is_within_its_bound() {
+        for k in 0..=2000 {
+            let x = -1.0 + f64::from(k) / 1000.0;
+            assert!((fast_acos(x) - x.acos()).abs() < 7e-5, "{x}");
+        }
+    }
+
     #[test]
     fn the_xz_rotation_is_the_rotation_arc_of_the_mirrors() {
         for (a, b) in [
