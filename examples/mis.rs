@@ -143,20 +143,20 @@ fn run(scene: &Scene, t: Technique, n: u64, seed: u64) -> (f64, f64, f64) {
 }
 
 fn main() {
-    let brdf: Arc<dyn Brdf> = registry::create("phong", ["n=1000", "kd=0", "ks=0.9"])
+    let brdf: Arc<dyn Brdf> = registry::create("lewis-phong", ["n=1000", "kd=0", "ks=0.9"])
         .expect("a model")
         .into();
     let view = spherical_direction(40f32.to_radians(), 25f32.to_radians());
-    // The sun 3° from the mirror direction of the view, 0.5° in radius, very bright.
+    // The sun 3° from the mirror direction of the view, 0.5° in radius: as much light as the sky.
     let env = Environment {
         sun: spherical_direction(43f32.to_radians(), 205f32.to_radians()),
         sun_cos_radius: 0.5f32.to_radians().cos(),
-        sun_radiance: 20_000.0,
+        sun_radiance: 200.0,
     };
     let t0 = Instant::now();
     let baked = BakedSampler::new(brdf.clone(), BakeConfig::default()).expect("a bake");
     println!(
-        "baked phong n=1000 in {:.2} s: {} trees, {} bytes",
+        "baked lewis-phong n=1000 in {:.2} s: {} trees, {} bytes",
         t0.elapsed().as_secs_f64(),
         baked.trees(),
         baked.bytes()
