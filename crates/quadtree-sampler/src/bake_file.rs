@@ -439,21 +439,27 @@ mod files {
         }
     }
 
-    /// Writes `bytes` to `path` complete or not at all: into a temporary file beside it,
-    /// flushed and synced, then renamed over `path`. A failure (or a kill) leaves the
-    /// previous file, or none, never a truncated one.
-    pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    /// A temporary path in the directory of `path` (hidden, named after it and this process),
+    /// so that renaming it over `path` is atomic.
+    pub fn temporary_beside(path: &Path) -> std::io::Result<PathBuf> {
+        let name = path
+            .file_name()
+            .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidInput, "no file name"))?;
         let dir = match path.parent() {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        let name = path
-            .file_name()
-            .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidInput, "no file name"))?;
-        let mut tmp_name = std::ffi::OsString::from(".");
-        tmp_name.push(name);
-        tmp_name.push(std::format!(".{}.tmp", std::process::id()));
-        let tmp = dir.join(tmp_name);
+        let mut tmp = std::ffi::OsString::from(".");
+        tmp.push(name);
+        tmp.push(std::format!(".{}.tmp", std::process::id()));
+        Ok(dir.join(tmp))
+    }
+
+    /// Writes `bytes` to `path` complete or not at all: into a temporary file beside it,
+    /// flushed and synced, then renamed over `path`. A failure (or a kill) leaves the
+    /// previous file, or none, never a truncated one.
+    pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+        let tmp = temporary_beside(path)?;
         let result = (|| {
             let mut f = std::fs::File::create(&tmp)?;
             f.write_all(bytes)?;
@@ -492,4 +498,4 @@ mod files {
 }
 
 #[cfg(feature = "std")]
-pub use files::{BakeIoError, write_atomically};
+pub use files::{BakeIoError, temporary_beside, write_atomically};

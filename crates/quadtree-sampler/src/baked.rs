@@ -62,7 +62,7 @@ use alloc::sync::Arc;
 use alloc::vec::Vec;
 use brdf_core::geometry::{above_horizon, luminance, mirror};
 use brdf_core::math as m;
-use brdf_core::warp::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
+use brdf_core::warp::sample_cosine_hemisphere;
 use brdf_core::{Brdf, BrdfSample, DirectionError, ParamSet, PeakHints, Symmetry};
 use core::f64::consts::{FRAC_PI_2, PI, TAU};
 use core::fmt;
@@ -1293,18 +1293,16 @@ impl BrokenPdf {
     #[must_use]
     pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
         let b = &self.0;
-        let (comps, n) = b.components(&b.forward, wi);
-        if n < 2 || !above_horizon(wo) {
+        let (mut comps, n) = b.components(&b.forward, wi);
+        if n < 2 {
             return b.pdf_unit(Role::Importance, wi, wo);
         }
+        // The mixture's own expression over the other neighbours, renormalised.
         let rest: f64 = comps[1..n].iter().map(|c| c.weight).sum();
-        let delta = b.config.defensive;
-        let mut p = delta * f64::from(cosine_hemisphere_pdf(wo.z));
-        for c in &comps[1..n] {
-            p += (1.0 - delta) * c.weight / rest
-                * b.component_pdf(&b.forward, false, c, wo.as_dvec3());
+        for c in &mut comps[1..n] {
+            c.weight /= rest;
         }
-        p as f32
+        b.pdf_of(&b.forward, false, &comps[1..n], wo)
     }
 
     /// The sampler at one wi with the wrong pdf.

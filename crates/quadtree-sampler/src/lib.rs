@@ -79,7 +79,7 @@ mod warp;
 
 pub use bake_file::{BAKE_FORMAT_VERSION, BAKE_MAGIC, BakeFileError};
 #[cfg(feature = "std")]
-pub use bake_file::{BakeIoError, write_atomically};
+pub use bake_file::{BakeIoError, temporary_beside, write_atomically};
 pub use baked::{
     BakeConfig, BakeError, BakeGrid, BakedAt, BakedError, BakedMode, BakedSampler, BrokenAt,
     BrokenPdf, DEFAULT_BAKE_NODE_BUDGET, DEFAULT_DEFENSIVE, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS,

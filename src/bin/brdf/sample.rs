@@ -286,7 +286,7 @@ pub(crate) fn run_sample(
     let built = build_from(brdf, args)?;
     // Complete or absent: the records go to a temporary file beside `out`, renamed over it
     // once all are written and synced; any failure removes it.
-    let tmp = temporary_beside(out)
+    let tmp = brdf_sampling::quadtree_sampler::temporary_beside(out)
         .map_err(|e| CliError::Usage(format!("--out {}: {e}", out.display())))?;
     let file = std::fs::File::create(&tmp)
         .map_err(|e| CliError::Usage(format!("--out {}: {e}", out.display())))?;
@@ -436,21 +436,6 @@ pub(crate) fn run_pdf(
     }
     out.flush()?;
     Ok(())
-}
-
-/// A temporary path in the directory of `path` (so that a rename over `path` is atomic).
-pub(crate) fn temporary_beside(path: &std::path::Path) -> std::io::Result<std::path::PathBuf> {
-    let name = path
-        .file_name()
-        .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file name"))?;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
-    };
-    let mut tmp = std::ffi::OsString::from(".");
-    tmp.push(name);
-    tmp.push(format!(".{}.tmp", std::process::id()));
-    Ok(dir.join(tmp))
 }
 
 /// Removes a temporary file when dropped, unless disarmed.
