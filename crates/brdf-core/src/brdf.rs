@@ -58,7 +58,9 @@ impl BrdfSample {
         Some(Self {
             wo,
             pdf: choice_probability,
-            f: reflectance / wo.z,
+            // The delta's coefficient R/cos θo, with cos θo at the grazing floor (finite for
+            // every wo above the horizon); the weight below is exact whatever cos θo is.
+            f: reflectance / (wo.z.max(crate::geometry::GRAZING_COS as f32)),
             weight: reflectance / choice_probability,
             delta: true,
             trials: 1,

@@ -1050,3 +1050,162 @@ mod symmetry {
         assert_eq!(refuted(&tilted, 3), Some("mirror_x"));
     }
 }
+
+/// The grazing floor (`geometry::GRAZING_COS`): every model at every parameter endpoint is
+/// finite down to the smallest positive f32 z, and below the floor it is the floor's value.
+mod grazing {
+    use super::*;
+    use brdf_core::ParamValue;
+    use brdf_core::geometry::GRAZING_COS;
+
+    /// Every model at its defaults, with each parameter at its minimum and at its maximum
+    /// (one at a time), and with all at the minimum and all at the maximum.
+    fn endpoint_models() -> Vec<Box<dyn Brdf>> {
+        let mut out = Vec::new();
+        for info in registry::models() {
+            let value = |spec: &brdf_core::ParamSpec, x: f32| match spec.kind {
+                brdf_core::ParamKind::Scalar => ParamValue::Scalar(x),
+                brdf_core::ParamKind::Rgb => ParamValue::Rgb(Vec3::splat(x)),
+            };
+            // An exclusive minimum is approached from above.
+            let lo = |spec: &brdf_core::ParamSpec| {
+                if spec.min_exclusive {
+                    spec.min
+                        .next_up()
+                        .max(spec.min + 1e-6 * (spec.max - spec.min))
+                } else {
+                    spec.min
+                }
+            };
+            let mut sets = vec![info.defaults()];
+            for spec in info.params {
+                for x in [lo(spec), spec.max] {
+                    let mut p = info.defaults();
+                    p.set(spec.name, value(spec, x)).unwrap();
+                    sets.push(p);
+                }
+            }
+            for end in [0, 1] {
+                let mut p = info.defaults();
+                for spec in info.params {
+                    let x = if end == 0 { lo(spec) } else { spec.max };
+                    p.set(spec.name, value(spec, x)).unwrap();
+                }
+                sets.push(p);
+            }
+            // Cross-constraints (a sum of reflectances at most 1, say) reject some sets: those
+            // are typed errors, tested elsewhere.
+            out.extend(sets.iter().filter_map(|p| info.build(p).ok()));
+        }
+        out
+    }
+
+    /// z = 10⁻ᵏ (k = 1…45: 1e-45 is the smallest positive f32) at azimuth `phi`.
+    fn at(k: i32, phi: f32) -> Vec3 {
+        let z = 10f64.powi(-k) as f32;
+        let z = if z > 0.0 { z } else { f32::from_bits(1) };
+        Vec3::new(phi.cos(), phi.sin(), z)
+    }
+
+    #[test]
+    fn finite_everywhere_above_the_horizon() {
+        let models = endpoint_models();
+        assert!(models.len() > 60, "{} parameter sets", models.len());
+        let mut checked = 0u64;
+        for b in &models {
+            for ki in 1..=45 {
+                for ko in [1, 4, 7, 8, 20, 38, 45] {
+                    for (pi, po) in [(0.0f32, std::f32::consts::PI), (0.0, 0.0), (0.3, 1.9)] {
+                        let (wi, wo) = (at(ki, pi), at(ko, po));
+                        let f = b.eval(wi, wo);
+                        let p = b.pdf(wi, wo);
+                        assert!(
+                            f.is_finite() && f.min_element() >= 0.0 && p.is_finite() && p >= 0.0,
+                            "{} {:?}: f({wi}, {wo}) = {f}, pdf = {p}",
+                            b.name(),
+                            b.params()
+                        );
+                        checked += 1;
+                    }
+                }
+                let wi = at(ki, 0.4);
+                for u in [
+                    (0.1f32, 0.2f32, 0.3f32),
+                    (0.9, 0.5, 0.99),
+                    (0.5, 0.999, 0.001),
+                ] {
+                    if let Some(s) = b.sample(wi, u.0, Vec2::new(u.1, u.2)) {
+                        assert!(
+                            s.pdf.is_finite()
+                                && s.pdf > 0.0
+                                && s.f.is_finite()
+                                && s.weight.is_finite(),
+                            "{} {:?}: sample at {wi}: {s:?}",
+                            b.name(),
+                            b.params()
+                        );
+                    }
+                }
+            }
+        }
+        assert!(checked > 100_000);
+    }
+
+    /// Below the floor a direction evaluates as its lift to the floor, so trees, albedos and
+    /// samples at z → 0 are those at the floor (10⁻⁴).
+    #[test]
+    fn below_the_floor_is_the_floor() {
+        let floor = |phi: f32| {
+            let r = (1.0 - GRAZING_COS * GRAZING_COS).sqrt();
+            Vec3::new(
+                (r * f64::from(phi.cos())) as f32,
+                (r * f64::from(phi.sin())) as f32,
+                GRAZING_COS as f32,
+            )
+        };
+        for b in &endpoint_models() {
+            let wo = dir(40.0, 200.0);
+            let want = b.eval(floor(0.0), wo);
+            for k in [5, 8, 12, 20, 30, 40, 45] {
+                let got = b.eval(at(k, 0.0), wo);
+                for c in 0..3 {
+                    assert!(
+                        close(f64::from(got[c]), f64::from(want[c]), 1e-5),
+                        "{} {:?}: f at z = 1e-{k} is {got}, at the floor {want}",
+                        b.name(),
+                        b.params()
+                    );
+                }
+            }
+            // Both below the floor: the floor pair.
+            let want = b.eval(floor(0.0), floor(3.0));
+            let got = b.eval(at(30, 0.0), at(25, 3.0));
+            for c in 0..3 {
+                assert!(
+                    close(f64::from(got[c]), f64::from(want[c]), 1e-5),
+                    "{} {:?}: {got} vs {want}",
+                    b.name(),
+                    b.params()
+                );
+            }
+        }
+    }
+
+    /// f0 = 0 (η = 1) is no interface: Cook–Torrance's and He–Torrance's Fresnel are exactly
+    /// 0, not rounding noise, so their f_r is exactly the diffuse term.
+    #[test]
+    fn no_interface_reflects_exactly_nothing() {
+        let ct = build("cook-torrance", &["f0=0", "kd=0"]);
+        let ht = build("htsg", &["eta=1", "kappa=0", "a=0"]);
+        for b in [ct, ht] {
+            for (ti, to, p) in [(0.0, 0.0, 0.0), (45.0, 45.0, 180.0), (80.0, 89.9, 170.0)] {
+                assert_eq!(
+                    b.eval(dir(ti, 0.0), dir(to, p)),
+                    Vec3::ZERO,
+                    "{} at {ti}/{to}/{p}",
+                    b.name()
+                );
+            }
+        }
+    }
+}

@@ -12,6 +12,11 @@
 //!   Integration is iterated: outer a (split where the rim crosses the node's horizontal
 //!   edges, pieces remapped near those points to absorb the limits' square-root
 //!   singularities), inner t between the node's edges.
+//!   The chart has poles at (±1, 0), where the rim is tangent to the node's vertical edges:
+//!   near them a node's t-range stays ±π/2 however small the node, so its rejection box
+//!   never shrinks. Leaves there are sampled in the transposed chart (b, s): y = sin b,
+//!   x = cos b·sin s, z = cos b·cos s ([`Chart::AngleY`], poles at (0, ±1)); each rim leaf
+//!   takes whichever of the two boxes is smaller.
 //! - **Concentric map**, sine coordinates (α, β): a = sin α, b = sin β, da db = cos α cos β
 //!   dα dβ; z = cos α or cos β exactly. The map's kinks (|a| = |b|) stay straight diagonals,
 //!   along which a node is split into triangles.
@@ -96,6 +101,9 @@ pub enum Chart {
     Square,
     /// Orthographic angle coordinates (a, t), for leaves that touch the rim.
     Angle,
+    /// The transposed angle coordinates (b, s) (x and y exchanged), for rim leaves near the
+    /// angle chart's poles (±1, 0).
+    AngleY,
     /// Concentric sine coordinates (α, β), for leaves that touch the square's edge.
     Sine,
 }
@@ -122,6 +130,19 @@ pub fn angle_point(a: f64, t: f64) -> ChartPoint {
         p,
         w: DVec3::new(sa, ca * st, ca * ct),
         jacobian: ca * ca * ct,
+    }
+}
+
+/// The transposed angle chart: (b, s) → point y = sin b, x = cos b·sin s, Jacobian
+/// cos²b·cos s ([`angle_point`] with x and y exchanged).
+#[inline]
+#[must_use]
+pub fn angle_point_y(b: f64, s: f64) -> ChartPoint {
+    let c = angle_point(b, s);
+    ChartPoint {
+        p: DVec2::new(c.p.y, c.p.x),
+        w: DVec3::new(c.w.y, c.w.x, c.w.z),
+        jacobian: c.jacobian,
     }
 }
 
@@ -505,6 +526,26 @@ impl Cell {
         }
     }
 
+    /// The number of cells held (this one and every remembered quadrant below it).
+    pub fn count(&self) -> usize {
+        1 + self
+            .quads
+            .as_ref()
+            .map_or(0, |q| q.iter().map(Cell::count).sum::<usize>())
+    }
+
+    /// Forgets the remembered quadrants more than `levels` levels below this cell. Values
+    /// are unaffected: a forgotten application is recomputed bit for bit when needed.
+    pub fn prune(&mut self, levels: u32) {
+        if levels == 0 {
+            self.quads = None;
+        } else if let Some(q) = &mut self.quads {
+            for c in q.iter_mut() {
+                c.prune(levels - 1);
+            }
+        }
+    }
+
     /// The four quadrant cells, taken out of this one (`None` when never computed).
     pub fn into_quads(self) -> [Option<Cell>; 4] {
         match self.quads {
@@ -577,6 +618,36 @@ pub(crate) fn refine_cells(
     parts.iter().map(|(v, _)| v).sum()
 }
 
+/// The (a, t) box of the rectangle [lo, hi] (x = sin a, y = cos a·sin t); `chart` names the
+/// chart it is for (the transposed chart passes the rectangle with x and y exchanged).
+fn angle_box(lo: DVec2, hi: DVec2, chart: Chart) -> Proposal {
+    let (xa, xb) = (lo.x.clamp(-1.0, 1.0), hi.x.clamp(-1.0, 1.0));
+    let (a0, a1) = (m::asin(xa), m::asin(xb));
+    // t = asin(y / cos a) over the node: extremes at the a-ends or at a = 0.
+    let (mut tlo, mut thi) = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut consider = |a: f64| {
+        let ca = m::cos(a);
+        if ca <= 0.0 {
+            return;
+        }
+        tlo = tlo.min(m::asin((lo.y / ca).clamp(-1.0, 1.0)));
+        thi = thi.max(m::asin((hi.y / ca).clamp(-1.0, 1.0)));
+    };
+    consider(a0);
+    consider(a1);
+    if a0 < 0.0 && a1 > 0.0 {
+        consider(0.0);
+    }
+    if tlo.is_nan() || thi.is_nan() || tlo >= thi {
+        (tlo, thi) = (-FRAC_PI_2, FRAC_PI_2);
+    }
+    Proposal {
+        chart,
+        lo: DVec2::new(a0, tlo),
+        hi: DVec2::new(a1, thi),
+    }
+}
+
 /// The box of a leaf in its sampling chart, and the map from chart coordinates back.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Proposal {
@@ -603,33 +674,12 @@ impl Proposal {
                         hi: rect.max,
                     };
                 }
-                let (xa, xb) = (rect.min.x.clamp(-1.0, 1.0), rect.max.x.clamp(-1.0, 1.0));
-                let (a0, a1) = (m::asin(xa), m::asin(xb));
-                // t = asin(y / cos a) over the node: extremes at the a-ends or at a = 0.
-                let (mut tlo, mut thi) = (f64::INFINITY, f64::NEG_INFINITY);
-                let mut consider = |a: f64| {
-                    let ca = m::cos(a);
-                    if ca <= 0.0 {
-                        return;
-                    }
-                    let lo = m::asin((rect.min.y / ca).clamp(-1.0, 1.0));
-                    let hi = m::asin((rect.max.y / ca).clamp(-1.0, 1.0));
-                    tlo = tlo.min(lo);
-                    thi = thi.max(hi);
-                };
-                consider(a0);
-                consider(a1);
-                if a0 < 0.0 && a1 > 0.0 {
-                    consider(0.0);
-                }
-                if tlo.is_nan() || thi.is_nan() || tlo >= thi {
-                    (tlo, thi) = (-FRAC_PI_2, FRAC_PI_2);
-                }
-                Self {
-                    chart: Chart::Angle,
-                    lo: DVec2::new(a0, tlo),
-                    hi: DVec2::new(a1, thi),
-                }
+                // The smaller of the two angle boxes (ties to the seed's own chart).
+                let (a, b) = (
+                    Self::in_chart(rect, Chart::Angle),
+                    Self::in_chart(rect, Chart::AngleY),
+                );
+                if b.area() < a.area() { b } else { a }
             }
             DiskMap::Concentric => {
                 let edge = rect.min.x <= -1.0
@@ -643,9 +693,30 @@ impl Proposal {
                         hi: rect.max,
                     };
                 }
+                Self::in_chart(rect, Chart::Sine)
+            }
+        }
+    }
+
+    /// The proposal of `rect` in a given chart (the chart a packed leaf recorded). For the
+    /// angle charts: the box of the node's (a, t) or (b, s) coordinates.
+    #[must_use]
+    pub fn in_chart(rect: &Rect, chart: Chart) -> Self {
+        match chart {
+            Chart::Square => Self {
+                chart,
+                lo: rect.min,
+                hi: rect.max,
+            },
+            Chart::Angle => angle_box(rect.min, rect.max, chart),
+            Chart::AngleY => {
+                let swap = |v: DVec2| DVec2::new(v.y, v.x);
+                angle_box(swap(rect.min), swap(rect.max), chart)
+            }
+            Chart::Sine => {
                 let s = |x: f64| m::asin(x.clamp(-1.0, 1.0));
                 Self {
-                    chart: Chart::Sine,
+                    chart,
                     lo: DVec2::new(s(rect.min.x), s(rect.min.y)),
                     hi: DVec2::new(s(rect.max.x), s(rect.max.y)),
                 }
@@ -675,6 +746,10 @@ impl Proposal {
                 let c = angle_point(q.x, q.y);
                 (c.p.y >= rect.min.y && c.p.y < rect.max.y && c.jacobian > 0.0).then_some(c)
             }
+            Chart::AngleY => {
+                let c = angle_point_y(q.x, q.y);
+                (c.p.x >= rect.min.x && c.p.x < rect.max.x && c.jacobian > 0.0).then_some(c)
+            }
             Chart::Sine => Some(sine_point(q.x, q.y)),
         }
     }
@@ -694,6 +769,12 @@ impl Proposal {
                 let ca = m::cos(a);
                 let t = if ca > 0.0 { m::atan2(w.y, w.z) } else { 0.0 };
                 DVec2::new(a, t)
+            }
+            Chart::AngleY => {
+                let b = m::asin(w.y.clamp(-1.0, 1.0));
+                let cb = m::cos(b);
+                let s = if cb > 0.0 { m::atan2(w.x, w.z) } else { 0.0 };
+                DVec2::new(b, s)
             }
             Chart::Sine => {
                 let p =
@@ -830,6 +911,41 @@ mod tests {
                 let got = refine_cells(map, q, &mut sub, &rule, tol, depth, &f, &mut peak, 1);
                 assert_eq!(got.to_bits(), want.to_bits(), "{map:?} {q:?}");
                 assert_eq!(peak, want_peak, "{map:?} {q:?}");
+            }
+        }
+    }
+
+    /// At the angle chart's poles (±1, 0) its box keeps a t-range of π/2 however small the
+    /// node; the chosen proposal must shrink with the node (area ~ s^{3/2}), at all four
+    /// tangent points, and sample the node exactly (round trip).
+    #[test]
+    fn rim_boxes_shrink_at_the_poles() {
+        for k in [4, 10, 19] {
+            let s = 2.0f64.powi(-k);
+            let nodes = [
+                Rect::square(-1.0, 0.0, s),
+                Rect::square(-1.0, -s, s),
+                Rect::square(1.0 - s, 0.0, s),
+                Rect::square(0.0, 1.0 - s, s),
+                Rect::square(-s, -1.0, s),
+            ];
+            for r in nodes {
+                let prop = Proposal::for_node(DiskMap::Orthographic, &r);
+                assert!(
+                    prop.area() <= 4.0 * s * s.sqrt(),
+                    "{r:?}: {prop:?} area {} for side {s}",
+                    prop.area()
+                );
+                for (i, j) in [(1, 1), (3, 5), (6, 2), (5, 6)] {
+                    let q = prop.lo
+                        + (prop.hi - prop.lo) * DVec2::new(f64::from(i) / 7.0, f64::from(j) / 7.0);
+                    let Some(c) = prop.point(DiskMap::Orthographic, &r, q) else {
+                        continue;
+                    };
+                    assert!(r.contains(c.p), "{r:?} {q} -> {}", c.p);
+                    let back = prop.coordinates(DiskMap::Orthographic, c.w);
+                    assert!((back - q).length() < 1e-6, "{r:?} {q} -> {back}");
+                }
             }
         }
     }

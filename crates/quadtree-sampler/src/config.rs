@@ -1,7 +1,6 @@
 //! Build options (SPEC §3), with the seed's choices as defaults.
 
 use crate::error::BuildError;
-use alloc::format;
 use brdf_core::DiskMap;
 
 /// The per-node integration rule (applied in the node's chart coordinates, adaptively).
@@ -90,56 +89,48 @@ impl BuildConfig {
 
     /// Checks every option's range.
     pub fn validate(&self) -> Result<(), BuildError> {
-        let bad = |message| Err(BuildError::Config { message });
+        let bad = |option, value, expected| {
+            Err(BuildError::OutOfRange {
+                option,
+                value,
+                expected,
+            })
+        };
         if !(self.split_threshold > 0.0 && self.split_threshold <= 1.0) {
-            return bad(format!(
-                "split_threshold = {} must be in (0, 1]",
-                self.split_threshold
-            ));
+            return bad("split_threshold", self.split_threshold, "in (0, 1]");
         }
         if !(self.integration_tolerance > 0.0 && self.integration_tolerance < 1.0) {
-            return bad(format!(
-                "integration_tolerance = {} must be in (0, 1)",
-                self.integration_tolerance
-            ));
+            return bad(
+                "integration_tolerance",
+                self.integration_tolerance,
+                "in (0, 1)",
+            );
         }
         let n = match self.rule {
             IntegrationRule::Midpoint { n } | IntegrationRule::GaussLegendre { n } => n,
         };
         if !(1..=64).contains(&n) {
-            return bad(format!("integration rule size {n} must be in [1, 64]"));
+            return bad("integration rule size", f64::from(n), "in [1, 64]");
         }
         if self.max_depth > 30 {
-            return bad(format!("max_depth = {} must be at most 30", self.max_depth));
+            return bad("max_depth", f64::from(self.max_depth), "at most 30");
         }
         if self.node_budget < 1 {
-            return bad(format!(
-                "node_budget = {} must be at least 1",
-                self.node_budget
-            ));
+            return bad("node_budget", f64::from(self.node_budget), "at least 1");
         }
         if let Some(t) = self.target_trials
             && (t.is_nan() || t < 1.0)
         {
-            return bad(format!("target_trials = {t} must be at least 1"));
+            return bad("target_trials", t, "at least 1");
         }
         if !(self.bound_safety >= 1.0 && self.bound_safety.is_finite()) {
-            return bad(format!(
-                "bound_safety = {} must be at least 1",
-                self.bound_safety
-            ));
+            return bad("bound_safety", self.bound_safety, "at least 1");
         }
         if !(2..=64).contains(&self.bound_grid) {
-            return bad(format!(
-                "bound_grid = {} must be in [2, 64]",
-                self.bound_grid
-            ));
+            return bad("bound_grid", f64::from(self.bound_grid), "in [2, 64]");
         }
         if !(self.min_relative_waste >= 0.0 && self.min_relative_waste < 1.0) {
-            return bad(format!(
-                "min_relative_waste = {} must be in [0, 1)",
-                self.min_relative_waste
-            ));
+            return bad("min_relative_waste", self.min_relative_waste, "in [0, 1)");
         }
         Ok(())
     }

@@ -91,8 +91,8 @@ pub use encoder::{Encoder, refleja};
 pub use error::BuildError;
 pub use packed::{PackedNode, PackedTree, Selected};
 pub use sampler::{
-    Baseline, BaselineSampler, DirectionSampler, MAX_TRIALS, QuadtreeSampler, Sample, uniform_f32,
-    uniform_f64, weight_luminance,
+    Baseline, BaselineSampler, DirectionSampler, MAX_TRIALS, MAX_USABLE_EXPECTED_TRIALS,
+    QuadtreeSampler, Sample, uniform_f32, uniform_f64, weight_luminance,
 };
 pub use table::{DEFAULT_TABLE_RES, TableSampler};
 pub use tree::{LEAF, Node, Quadtree, TreeStats, albedo_of_volume};

@@ -85,7 +85,8 @@ impl PackedNode {
         match self.link & 3 {
             0 => Chart::Square,
             1 => Chart::Angle,
-            _ => Chart::Sine,
+            2 => Chart::Sine,
+            _ => Chart::AngleY,
         }
     }
 }
@@ -196,6 +197,7 @@ impl PackedTree {
                         Chart::Square => 0,
                         Chart::Angle => 1,
                         Chart::Sine => 2,
+                        Chart::AngleY => 3,
                     };
                     let live = if n.v1 > 0.0 { LIVE_FLAG } else { 0 };
                     PackedNode {
@@ -320,15 +322,7 @@ impl PackedTree {
     pub fn proposal(&self, leaf: &Selected) -> (Proposal, f64) {
         let n = self.nodes[leaf.index];
         let chart = n.chart();
-        let prop = if chart == Chart::Square {
-            Proposal {
-                chart,
-                lo: leaf.rect.min,
-                hi: leaf.rect.max,
-            }
-        } else {
-            Proposal::for_node(self.map, &leaf.rect)
-        };
+        let prop = Proposal::in_chart(&leaf.rect, chart);
         (
             prop,
             if n.is_live_leaf() {
@@ -415,7 +409,7 @@ impl PackedTree {
     /// and sampling rely on, so that no input can make them index out of range, loop or
     /// return a negative or NaN bound: one root; every inner node's four children lie after
     /// it, inside the arena, and are nobody else's; child starts are ordered and within
-    /// [0, 2³¹]; a leaf's chart is one of the three and fits the map; its bound is finite and
+    /// [0, 2³¹]; a leaf's chart is one of the four and fits the map; its bound is finite and
     /// ≥ 0; the depth stays within 30; `volume` is finite and ≥ 0.
     pub(crate) fn from_raw(
         raw: &[[u32; 4]],
@@ -435,13 +429,14 @@ impl PackedTree {
         for (i, w) in raw.iter().enumerate() {
             let link = w[0];
             if link & LEAF_FLAG != 0 {
-                if link & !(LEAF_FLAG | LIVE_FLAG) > 2 {
+                if link & !(LEAF_FLAG | LIVE_FLAG) > 3 {
                     return Err("a leaf with an unknown chart");
                 }
                 let chart = link & 3;
+                // 0 square, 1 angle, 2 sine, 3 transposed angle.
                 let fits = match map {
                     DiskMap::Orthographic => chart != 2,
-                    DiskMap::Concentric => chart != 1,
+                    DiskMap::Concentric => chart == 0 || chart == 2,
                 };
                 if !fits {
                     return Err("a leaf whose chart does not belong to the tree's map");

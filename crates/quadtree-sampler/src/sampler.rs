@@ -103,6 +103,11 @@ pub struct QuadtreeSampler<'a, B: Brdf + ?Sized> {
 /// The rejection loop gives up on one sample after this many trials (returns `None`).
 pub const MAX_TRIALS: u32 = 1 << 20;
 
+/// A build whose tree would need more than this many rejection trials per sample on average
+/// is an error ([`crate::BuildError::Exhausted`]) rather than a sampler that crawls: the seed's
+/// rule promises 2, and only a budget (nodes, depth) that stopped the build can leave more.
+pub const MAX_USABLE_EXPECTED_TRIALS: f64 = 64.0;
+
 impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
     /// Builds the quadtree of f_r(wi, ·) for a local `wi` (normalised here; it must be finite,
     /// non-zero and above the horizon). Delta models are an error.

@@ -45,8 +45,10 @@ impl<'a, B: Brdf + ?Sized> TableSampler<'a, B> {
             return Err(BuildError::DeltaModel { model: brdf.name() });
         }
         if !(1..=4096).contains(&res) {
-            return Err(BuildError::Config {
-                message: alloc::format!("table resolution {res} must be in [1, 4096]"),
+            return Err(BuildError::OutOfRange {
+                option: "table resolution",
+                value: res as f64,
+                expected: "in [1, 4096]",
             });
         }
         let h = 2.0 / res as f64;
@@ -71,12 +73,7 @@ impl<'a, B: Brdf + ?Sized> TableSampler<'a, B> {
         }
         let mean = cells.iter().sum::<f64>() / cells.len() as f64;
         if !(mean > 0.0 && mean.is_finite()) {
-            return Err(BuildError::Config {
-                message: alloc::format!(
-                    "f_r of `{}` is 0 at every table point for this wi",
-                    brdf.name()
-                ),
-            });
+            return Err(BuildError::ZeroBrdf { model: brdf.name() });
         }
         let floor = 1e-3 * mean;
         let cells: Vec<f32> = cells.iter().map(|&c| c.max(floor) as f32).collect();

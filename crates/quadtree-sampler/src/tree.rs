@@ -8,6 +8,7 @@ use alloc::collections::BinaryHeap;
 use alloc::vec::Vec;
 use brdf_core::{Brdf, DiskMap, math as m};
 use core::cmp::Ordering;
+use core::sync::atomic::{AtomicUsize, Ordering as AtomicOrdering};
 use glam::{DVec2, DVec3, Vec3};
 
 /// No child: the node is a leaf.
@@ -139,6 +140,13 @@ struct Evaluation {
     proposal: Proposal,
 }
 
+/// Integration cells the build may remember for the nodes still to split (64 bytes each:
+/// 64 MiB). Past it, a new node keeps only the cells of its children's first rule
+/// application, and past twice it none: the memoised cells only save work (a forgotten one
+/// is recomputed bit for bit), so the tree does not depend on this, and the build's memory
+/// stays below about 2 × 64 MiB plus 80 bytes per node.
+pub(crate) const CELL_CACHE_LIMIT: usize = 1 << 20;
+
 /// Everything a node evaluation needs: pure, shared by the worker threads.
 struct Context<'a, B: Brdf + ?Sized> {
     pub brdf: &'a B,
@@ -151,6 +159,8 @@ struct Context<'a, B: Brdf + ?Sized> {
     tol_floor: f64,
     /// Levels of each node's adaptive integration whose quadrants run in parallel.
     par_levels: u32,
+    /// Integration cells remembered for the leaves (see [`CELL_CACHE_LIMIT`]).
+    cached: AtomicUsize,
 }
 
 impl<'a, B: Brdf + ?Sized> Context<'a, B> {
@@ -182,6 +192,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             } else {
                 0
             },
+            cached: AtomicUsize::new(0),
         };
         let root = Rect::square(-1.0, -1.0, 2.0);
         let f = |w: DVec3| ctx.f(w);
@@ -222,7 +233,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         let mut prop = Proposal::for_node(map, rect);
         // The angle chart is needed only where f is unbounded at the rim; elsewhere the seed's
         // square proposal is tighter (its only waste, outside the disk, shrinks as it splits).
-        let rim_peak = if prop.chart == Chart::Angle {
+        let rim_peak = if matches!(prop.chart, Chart::Angle | Chart::AngleY) {
             self.rim_probe(rect)
         } else {
             None
@@ -273,6 +284,11 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         let seed = match prop.chart {
             Chart::Square => (peak.f, peak.p),
             Chart::Angle | Chart::Sine => (peak.fj, peak.q),
+            // The integration's peak is in (a, t): move it into (b, s), with its height there.
+            Chart::AngleY => {
+                let q = prop.coordinates(map, crate::chart::angle_point(peak.q.x, peak.q.y).w);
+                (self.height(&prop, rect, q), q)
+            }
         };
         let mut found = self.bound(&prop, rect, seed);
         if let Some(RimProbe::Bounded(limit)) = rim_peak {
@@ -314,13 +330,18 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         for i in 0..=g {
             let a = lo.x + span.x * i as f64 / g as f64;
             let (t0, t1) = match prop.chart {
-                Chart::Angle => {
+                Chart::Angle | Chart::AngleY => {
                     let ca = m::cos(a);
                     if ca <= 0.0 {
                         continue;
                     }
                     let lim = |y: f64| m::asin((y / ca).clamp(-1.0, 1.0));
-                    (lim(rect.min.y), lim(rect.max.y).min(hi.y))
+                    let (ylo, yhi) = if prop.chart == Chart::Angle {
+                        (rect.min.y, rect.max.y)
+                    } else {
+                        (rect.min.x, rect.max.x)
+                    };
+                    (lim(ylo), lim(yhi).min(hi.y))
                 }
                 Chart::Square | Chart::Sine => (lo.y, hi.y),
             };
@@ -426,18 +447,37 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
 
     /// Evaluates nodes (in parallel when enabled), each from its inherited cells.
     fn evaluate_all(&self, nodes: Vec<(Rect, Option<Cell>)>) -> Vec<(Evaluation, Option<Cell>)> {
+        let one = |(r, c): (Rect, Option<Cell>)| {
+            let (e, cells) = self.evaluate(&r, c);
+            (e, self.remember(cells))
+        };
         #[cfg(feature = "rayon")]
         if self.config.parallel {
             use rayon::prelude::*;
-            return nodes
-                .into_par_iter()
-                .map(|(r, c)| self.evaluate(&r, c))
-                .collect();
+            return nodes.into_par_iter().map(one).collect();
         }
-        nodes
-            .into_iter()
-            .map(|(r, c)| self.evaluate(&r, c))
-            .collect()
+        nodes.into_iter().map(one).collect()
+    }
+
+    /// A new leaf's cells as the cache budget allows ([`CELL_CACHE_LIMIT`]), counted in.
+    fn remember(&self, cells: Option<Cell>) -> Option<Cell> {
+        let mut cell = cells?;
+        let held = self.cached.load(AtomicOrdering::Relaxed);
+        if held > 2 * CELL_CACHE_LIMIT {
+            return None;
+        }
+        if held > CELL_CACHE_LIMIT {
+            cell.prune(1);
+        }
+        self.cached.fetch_add(cell.count(), AtomicOrdering::Relaxed);
+        Some(cell)
+    }
+
+    /// Counts out a leaf's cells as it hands them to its children.
+    fn forget(&self, cells: &Option<Cell>) {
+        if let Some(c) = cells {
+            self.cached.fetch_sub(c.count(), AtomicOrdering::Relaxed);
+        }
     }
 }
 
@@ -473,7 +513,11 @@ pub struct Quadtree {
 
 impl Quadtree {
     /// Builds the tree of f_r(wi, ·) for a local `wi` (normalised here; it must be finite,
-    /// non-zero and above the horizon). Delta models are an error. This is the build's own
+    /// non-zero and above the horizon). Delta models are an error, and so is an f_r that is 0
+    /// for this `wi` ([`BuildError::ZeroBrdf`]) or one the budget cannot bound to at most
+    /// [`crate::MAX_USABLE_EXPECTED_TRIALS`] trials per sample ([`BuildError::Exhausted`]).
+    /// The build's time is bounded by the node budget and its memory by the node budget and a
+    /// fixed cache of integration cells (about 130 MiB). This is the build's own
     /// layout, with everything each node's evaluation found; samplers use its
     /// [`crate::PackedTree`].
     pub fn new<B: Brdf + ?Sized>(
@@ -520,7 +564,7 @@ impl Quadtree {
         let root_rect = Rect::square(-1.0, -1.0, 2.0);
         let (e, cells) = ctx.evaluate(&root_rect, Some(root_cells));
         // Each leaf's integration cells, until it splits and hands them to its children.
-        let mut pending = alloc::vec![cells];
+        let mut pending = alloc::vec![ctx.remember(cells)];
         let mut tree = Self {
             nodes: alloc::vec![Node {
                 x: -1.0,
@@ -571,6 +615,19 @@ impl Quadtree {
         });
         tree.refine_to_target(ctx, target, &mut pending);
         tree.sum_up();
+        if tree.volume().is_nan() || tree.volume() <= 0.0 {
+            return Err(BuildError::ZeroBrdf {
+                model: ctx.brdf.name(),
+            });
+        }
+        let expected_trials = tree.stats().expected_trials;
+        if expected_trials.is_nan() || expected_trials > crate::MAX_USABLE_EXPECTED_TRIALS {
+            return Err(BuildError::Exhausted {
+                model: ctx.brdf.name(),
+                nodes: tree.nodes.len(),
+                expected_trials,
+            });
+        }
         Ok(tree)
     }
 
@@ -588,11 +645,9 @@ impl Quadtree {
         for (k, &p) in parents.iter().enumerate() {
             let n = self.nodes[p as usize];
             self.nodes[p as usize].first_child = first_new + 4 * k as u32;
-            inherited.extend(
-                pending[p as usize]
-                    .take()
-                    .map_or([None, None, None, None], Cell::into_quads),
-            );
+            let cells = pending[p as usize].take();
+            ctx.forget(&cells);
+            inherited.extend(cells.map_or([None, None, None, None], Cell::into_quads));
             let h = 0.5 * n.size;
             for (dx, dy) in [(0.0, 0.0), (h, 0.0), (0.0, h), (h, h)] {
                 let (x, y) = (n.x + dx, n.y + dy);

@@ -108,8 +108,10 @@ impl CellGrid {
         if (1..=4096).contains(&r) && (1..=4096).contains(&c) {
             Ok(())
         } else {
-            Err(BuildError::Config {
-                message: format!("cell grid {r} x {c}: each dimension must be in 1..=4096"),
+            Err(BuildError::OutOfRange {
+                option: "cell grid dimension",
+                value: if (1..=4096).contains(&r) { c } else { r } as f64,
+                expected: "in 1..=4096",
             })
         }
     }
@@ -600,27 +602,68 @@ pub struct Report {
     pub spread: Option<Spread>,
     /// The per-test significance the p-values were judged at.
     pub alpha: f64,
-    /// Why the test rejected (empty when it passed).
+    /// Why the test rejected (empty when nothing rejected).
     pub reasons: Vec<String>,
     /// The reasons that concern the sampler judged against its own pdf alone: invalid
     /// masses, a pdf integrating above 1, the χ² against its own pdf, samples outside the
-    /// domain, inconsistent samples. A sampler that is exact for its own pdf but not ∝ f·cos
-    /// (an analytic lobe sampler, the warp) has none.
+    /// domain, inconsistent samples, every sample lost. A sampler that is exact for its own
+    /// pdf but not ∝ f·cos (an analytic lobe sampler, the warp) has none.
     pub own_reasons: Vec<String>,
+    /// Why the test could not judge (too few degrees of freedom for a χ²: too few samples
+    /// or cells). Such a test neither passes nor rejects: see [`Verdict::Inconclusive`].
+    pub inconclusive: Vec<String>,
+    /// The part of [`Report::inconclusive`] that concerns the sampler's own pdf alone.
+    pub own_inconclusive: Vec<String>,
+}
+
+/// A test's outcome. A rejection outranks an inconclusive test: a sampler that put samples
+/// outside the domain is wrong however few samples were drawn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Verdict {
+    /// Every test ran and none rejected.
+    Passed,
+    /// A test rejected (see [`Report::reasons`]).
+    Rejected,
+    /// Nothing rejected, but a test could not be run (see [`Report::inconclusive`]).
+    Inconclusive,
+}
+
+impl Verdict {
+    fn of(reasons: &[String], inconclusive: &[String]) -> Self {
+        if !reasons.is_empty() {
+            Self::Rejected
+        } else if !inconclusive.is_empty() {
+            Self::Inconclusive
+        } else {
+            Self::Passed
+        }
+    }
 }
 
 impl Report {
-    /// True when nothing rejected.
+    /// True when every test ran and nothing rejected.
     #[must_use]
     pub fn passed(&self) -> bool {
-        self.reasons.is_empty()
+        self.verdict() == Verdict::Passed
     }
 
     /// True when the sampler is right about its own pdf (see [`Report::own_reasons`]),
     /// whether or not that pdf follows f·cos.
     #[must_use]
     pub fn passed_own(&self) -> bool {
-        self.own_reasons.is_empty()
+        self.verdict_own() == Verdict::Passed
+    }
+
+    /// The outcome against f·cos and the sampler's own pdf (SPEC §5).
+    #[must_use]
+    pub fn verdict(&self) -> Verdict {
+        Verdict::of(&self.reasons, &self.inconclusive)
+    }
+
+    /// The outcome against the sampler's own pdf alone.
+    #[must_use]
+    pub fn verdict_own(&self) -> Verdict {
+        Verdict::of(&self.own_reasons, &self.own_inconclusive)
     }
 }
 
@@ -680,8 +723,10 @@ impl<'a, B: Brdf + ?Sized> Validation<'a, B> {
             return Err(BuildError::DeltaModel { model: brdf.name() });
         }
         if !(tol > 0.0 && tol < 1.0) {
-            return Err(BuildError::Config {
-                message: format!("validation tolerance {tol} must be in (0, 1)"),
+            return Err(BuildError::OutOfRange {
+                option: "validation tolerance",
+                value: tol,
+                expected: "in (0, 1)",
             });
         }
         let f = |w: Vec3| f64::from(brdf.eval_luminance(wi, w));
@@ -860,22 +905,31 @@ impl<'a, B: Brdf + ?Sized> Validation<'a, B> {
                 true,
             ));
         }
+        let mut inconclusive: Vec<(String, bool)> = Vec::new();
         for (label, test, is_own) in [("f·cos", &chi2, false), ("its own pdf", &chi2_own, true)] {
-            let reason = match test {
-                None => Some(format!(
-                    "too few degrees of freedom for the χ² against {label}: use more samples or cells"
+            match test {
+                None => inconclusive.push((
+                    format!(
+                        "too few degrees of freedom for the χ² against {label}: use more samples or cells"
+                    ),
+                    is_own,
                 )),
-                Some(c) if c.p_value.is_nan() || c.p_value < alpha => Some(format!(
-                    "χ² against {label} = {:.1} with {} dof: p = {:.3e} < α = {alpha:.3e}",
-                    c.statistic, c.dof, c.p_value
+                Some(c) if c.p_value.is_nan() || c.p_value < alpha => reasons.push((
+                    format!(
+                        "χ² against {label} = {:.1} with {} dof: p = {:.3e} < α = {alpha:.3e}",
+                        c.statistic, c.dof, c.p_value
+                    ),
+                    is_own,
                 )),
-                Some(_) => None,
-            };
-            if let Some(r) = reason {
-                reasons.push((r, is_own));
+                Some(_) => {}
             }
         }
-        if lost > 0 {
+        if samples > 0 && lost == samples {
+            reasons.push((
+                format!("every one of the {samples} samples was lost: the sampler drew nothing"),
+                true,
+            ));
+        } else if lost > 0 {
             reasons.push((
                 format!(
                     "{lost} samples carried no direction, though f·cos puts every sample somewhere"
@@ -922,6 +976,12 @@ impl<'a, B: Brdf + ?Sized> Validation<'a, B> {
                 .map(|r| r.0.clone())
                 .collect(),
             reasons: reasons.into_iter().map(|r| r.0).collect(),
+            own_inconclusive: inconclusive
+                .iter()
+                .filter(|r| r.1)
+                .map(|r| r.0.clone())
+                .collect(),
+            inconclusive: inconclusive.into_iter().map(|r| r.0).collect(),
         }
     }
 

@@ -40,8 +40,10 @@ impl<'a, B: Brdf + ?Sized> WarpSampler<'a, B> {
     /// the warp's node probabilities, with defensive weight `mix` ∈ (0, 1].
     pub fn new(brdf: &'a B, wi: Vec3, config: BuildConfig, mix: f64) -> Result<Self, BuildError> {
         if !(mix > 0.0 && mix <= 1.0) {
-            return Err(BuildError::Config {
-                message: alloc::format!("warp mix = {mix} must be in (0, 1]"),
+            return Err(BuildError::OutOfRange {
+                option: "warp mix",
+                value: mix,
+                expected: "in (0, 1]",
             });
         }
         let wi = unit_direction_above(wi)?;

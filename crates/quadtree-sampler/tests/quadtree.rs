@@ -404,7 +404,7 @@ fn bad_inputs_are_typed_errors() {
     ] {
         assert!(matches!(
             QuadtreeSampler::new(&*b, Vec3::Z, cfg),
-            Err(BuildError::Config { .. })
+            Err(BuildError::OutOfRange { .. })
         ));
     }
     let n = Vec3::Z;

@@ -72,7 +72,15 @@ impl Launch {
                 let wi = brdf_core::geometry::unit_direction_above(wi)
                     .map_err(|e| format!("--wi: {e}"))?;
                 let (t, p) = spherical_angles(wi);
-                (t.to_degrees().min(MAX_THETA_DEG), p.to_degrees())
+                let t = t.to_degrees();
+                // Used as given or refused, never moved: the sliders stop at 89°.
+                // (A thousandth of a degree of slack for the f32 round trip of 89° itself.)
+                if t > MAX_THETA_DEG + 1e-3 {
+                    return Err(format!(
+                        "--wi: θ = {t:.4}° is beyond the viewer's {MAX_THETA_DEG}° limit (`brdf sample` takes any wi above the horizon)"
+                    ));
+                }
+                (t.min(MAX_THETA_DEG), p.to_degrees())
             }
             None => (45.0, 30.0),
         };

@@ -156,6 +156,22 @@ fn bad_launches_are_typed_errors() {
         })
         .contains("--samples")
     );
+    // Beyond the sliders' 89°: refused, not moved to 89° behind the user's back.
+    let e = bad(Launch {
+        wi: Some(glam::Vec3::new(1.0, 0.0, 1e-3)),
+        ..Launch::default()
+    });
+    assert!(e.contains("--wi") && e.contains("89"), "{e}");
+    // At 89° exactly it is used as given.
+    let at89 = Launch {
+        wi: Some(glam::Vec3::new(
+            89f32.to_radians().sin(),
+            0.0,
+            89f32.to_radians().cos(),
+        )),
+        ..Launch::default()
+    };
+    assert!(at89.resolve().is_ok());
 }
 
 #[test]

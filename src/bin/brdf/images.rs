@@ -104,7 +104,11 @@ pub(crate) fn write_png(path: &Path, grid: CellGrid, report: &Report) -> image::
             }
         }
     }
-    img.save_with_format(path, image::ImageFormat::Png)
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut bytes, image::ImageFormat::Png)?;
+    // Complete or absent: encoded in memory, then renamed into place.
+    brdf_sampling::quadtree_sampler::write_atomically(path, bytes.get_ref())
+        .map_err(image::ImageError::IoError)
 }
 
 /// Writes the raw per-cell arrays as one EXR layer of `cols × rows` f32 pixels with the
@@ -143,5 +147,9 @@ pub(crate) fn write_exr(
         Encoding::FAST_LOSSLESS,
         channels,
     );
-    Image::from_layer(layer).write().to_file(path)
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    Image::from_layer(layer).write().to_buffered(&mut bytes)?;
+    // Complete or absent: encoded in memory, then renamed into place.
+    brdf_sampling::quadtree_sampler::write_atomically(path, bytes.get_ref())
+        .map_err(exr::error::Error::Io)
 }

@@ -1,5 +1,6 @@
 //! `brdf`: the command line of SPEC §6, a stable contract that other tools script against.
-//! Errors go to stderr with exit status 2; a statistical test that rejects exits 1.
+//! Errors go to stderr with exit status 2; a statistical test that rejects exits 1, and one
+//! that could not be judged (too few samples or cells) exits 3.
 
 mod bake;
 mod bench;
@@ -70,9 +71,6 @@ enum Command {
         #[command(flatten)]
         bench: bench::BenchArgs,
     },
-    /// The validation of SPEC §5 for any sampler: histogram --samples directions over a cell
-    /// grid and compare with ∫f·cos per cell (the seed's a_i spread, Pearson χ²) and with the
-    /// sampler's own pdf. Prints a table; exits 1 when any test rejects.
     /// Bakes a model's sampler for every incident direction into a file (SPEC §7) and prints
     /// one JSON object: trees, nodes, bytes, build_seconds, grid.
     Bake {
@@ -81,6 +79,11 @@ enum Command {
         #[command(flatten)]
         bake: bake::BakeArgs,
     },
+    /// The validation of SPEC §5 for any sampler: histogram --samples directions over a cell
+    /// grid and compare with ∫f·cos per cell (the seed's a_i spread, Pearson χ²) and with the
+    /// sampler's own pdf. Prints a table. Exit status: 0 when every test passed, 1 when any
+    /// rejected, 3 when none rejected but one could not be judged (inconclusive: too few
+    /// samples or cells for its χ²), 2 for an error.
     Test {
         #[command(flatten)]
         model: OptModelArgs,
@@ -172,10 +175,12 @@ impl From<std::io::Error> for CliError {
     }
 }
 
-/// What a subcommand found: every test passed, or one rejected (exit status 1).
+/// What a subcommand found: every test passed, one rejected (exit status 1), or none
+/// rejected but one could not be judged (exit status 3).
 enum Outcome {
     Passed,
     Rejected,
+    Inconclusive,
 }
 
 fn run(cli: Cli) -> Result<Outcome, CliError> {
@@ -207,11 +212,11 @@ fn run(cli: Cli) -> Result<Outcome, CliError> {
         Command::Bench { bench } => bench::run(&bench, stdout),
         Command::Test { model, mut test } => {
             let brdf = model.resolve(test.options_mut())?;
-            let passed = test::run(&*brdf, &model.params, &test, stdout)?;
-            return Ok(if passed {
-                Outcome::Passed
-            } else {
-                Outcome::Rejected
+            use brdf_sampling::quadtree_sampler::validate::Verdict;
+            return Ok(match test::run(&*brdf, &model.params, &test, stdout)? {
+                Verdict::Passed => Outcome::Passed,
+                Verdict::Rejected => Outcome::Rejected,
+                Verdict::Inconclusive => Outcome::Inconclusive,
             });
         }
     };
@@ -222,6 +227,7 @@ fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(Outcome::Passed) => ExitCode::SUCCESS,
         Ok(Outcome::Rejected) => ExitCode::from(1),
+        Ok(Outcome::Inconclusive) => ExitCode::from(3),
         // A closed pipe (`brdf eval | head`) is the reader's choice, not an error.
         Err(CliError::Io(e)) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
         Err(e) => {

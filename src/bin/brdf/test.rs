@@ -8,7 +8,9 @@ use brdf_sampling::Brdf;
 use brdf_sampling::geometry::spherical_direction;
 use brdf_sampling::glam::Vec3;
 use brdf_sampling::quadtree_sampler::DirectionSampler;
-use brdf_sampling::quadtree_sampler::validate::{CellGrid, ChiSquare, Report, Validation, sidak};
+use brdf_sampling::quadtree_sampler::validate::{
+    CellGrid, ChiSquare, Report, Validation, Verdict, sidak,
+};
 use rand_core::SeedableRng;
 use serde_json::{Value, json};
 use std::fmt::Write as _;
@@ -115,16 +117,56 @@ fn splitmix64(x: u64) -> u64 {
 }
 
 impl Row {
-    /// The reasons for the verdict `--against` asks for.
-    fn reasons(&self) -> &[String] {
+    /// The reasons for the verdict `--against` asks for: what rejected, then what could not
+    /// be judged.
+    fn reasons(&self) -> Vec<&String> {
+        let (rejects, unjudged) = match self.against {
+            Against::Fcos => (&self.report.reasons, &self.report.inconclusive),
+            Against::Own => (&self.report.own_reasons, &self.report.own_inconclusive),
+        };
+        rejects.iter().chain(unjudged).collect()
+    }
+
+    /// The verdict `--against` asks for.
+    fn verdict(&self) -> Verdict {
         match self.against {
-            Against::Fcos => &self.report.reasons,
-            Against::Own => &self.report.own_reasons,
+            Against::Fcos => self.report.verdict(),
+            Against::Own => self.report.verdict_own(),
         }
     }
 
     fn passed(&self) -> bool {
-        self.reasons().is_empty()
+        self.verdict() == Verdict::Passed
+    }
+}
+
+/// The run's outcome: rejected when any test rejected, else inconclusive when any could not
+/// be judged, else passed (exit status 1, 3, 0).
+pub(crate) fn overall(verdicts: impl IntoIterator<Item = Verdict>) -> Verdict {
+    let mut out = Verdict::Passed;
+    for v in verdicts {
+        match v {
+            Verdict::Rejected => return Verdict::Rejected,
+            Verdict::Inconclusive => out = Verdict::Inconclusive,
+            Verdict::Passed => {}
+        }
+    }
+    out
+}
+
+fn verdict_text(v: Verdict) -> &'static str {
+    match v {
+        Verdict::Passed => "pass",
+        Verdict::Rejected => "REJECT",
+        Verdict::Inconclusive => "INCONCLUSIVE",
+    }
+}
+
+fn verdict_slug(v: Verdict) -> &'static str {
+    match v {
+        Verdict::Passed => "passed",
+        Verdict::Rejected => "rejected",
+        Verdict::Inconclusive => "inconclusive",
     }
 }
 
@@ -164,13 +206,13 @@ fn grid_slug(g: CellGrid) -> &'static str {
     }
 }
 
-/// Runs the tests; returns whether all passed.
+/// Runs the tests; returns the run's verdict ([`overall`]).
 pub(crate) fn run(
     brdf: &dyn Brdf,
     params: &[String],
     args: &TestArgs,
     mut stdout: impl Write,
-) -> Result<bool, CliError> {
+) -> Result<Verdict, CliError> {
     if args.samples == 0 {
         return Err(CliError::Usage("--samples must be at least 1".into()));
     }
@@ -303,7 +345,18 @@ pub(crate) fn run(
             });
         }
     }
-    let passed = rows.iter().all(Row::passed) && weight_tests.iter().all(|w| w.passed);
+    let verdict = overall(
+        rows.iter()
+            .map(Row::verdict)
+            .chain(weight_tests.iter().map(|w| {
+                if w.passed {
+                    Verdict::Passed
+                } else {
+                    Verdict::Rejected
+                }
+            })),
+    );
+    let passed = verdict == Verdict::Passed;
     let header = format!(
         "model {}{}{}, sampler {mode}{}, {} samples per test, judged against {}, α = {} over {tests} tests (Šidák: {:.3e} each)",
         brdf.name(),
@@ -346,8 +399,11 @@ pub(crate) fn run(
     }
     if let Some(dir) = &args.out {
         let index = dir.join("index.md");
-        std::fs::write(&index, format!("# brdf test\n\n{table}\n{LEGEND}\n"))
-            .map_err(|e| CliError::Usage(format!("writing {}: {e}", index.display())))?;
+        brdf_sampling::quadtree_sampler::write_atomically(
+            &index,
+            format!("# brdf test\n\n{table}\n{LEGEND}\n").as_bytes(),
+        )
+        .map_err(|e| CliError::Usage(format!("writing {}: {e}", index.display())))?;
     }
     if args.json {
         let tests: Vec<Value> = rows.iter().map(row_json).collect();
@@ -371,6 +427,7 @@ pub(crate) fn run(
             "builds": builds,
             "tests": tests,
             "passed": passed,
+            "verdict": verdict_slug(verdict),
         });
         serde_json::to_writer(&mut stdout, &out).map_err(std::io::Error::from)?;
         writeln!(stdout)?;
@@ -380,7 +437,7 @@ pub(crate) fn run(
             writeln!(stdout, "\n{LEGEND}")?;
         }
     }
-    Ok(passed)
+    Ok(verdict)
 }
 
 const LEGEND: &str = "Images: expected | observed counts per cell (viridis, linear from 0 to the \
@@ -430,7 +487,7 @@ fn table(header: &str, rows: &[Row]) -> String {
             p_text(rep.chi2.as_ref()),
             p_text(rep.chi2_own.as_ref()),
             r.seconds,
-            if r.passed() { "pass" } else { "REJECT" }
+            verdict_text(r.verdict())
         );
     }
     for (k, r) in rows.iter().enumerate() {
@@ -468,6 +525,7 @@ fn row_json(r: &Row) -> Value {
         "in_empty_cells": rep.in_empty_cells,
         "seconds": r.seconds,
         "passed": r.passed(),
+        "verdict": verdict_slug(r.verdict()),
         "reasons": r.reasons(),
         "images": r.images.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
     })

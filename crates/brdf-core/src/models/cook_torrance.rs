@@ -104,10 +104,19 @@ impl CookTorrance {
 }
 
 /// F for a dielectric of relative index `eta` at cosine `u` (MODELS.md §6).
+///
+/// g − u is computed as (η² − 1)/(g + u) (the same value: g² − u² = η² − 1), so that F is
+/// exactly 0 at η = 1 (f0 = 0) instead of rounding noise: a tree built on noise never
+/// converges.
 fn fresnel_dielectric(eta: f64, u: f64) -> f64 {
-    let g = m::sqrt((eta * eta + u * u - 1.0).max(0.0));
-    let a = (g - u) / (g + u);
-    let b = (u * (g + u) - 1.0) / (u * (g - u) + 1.0);
+    let e2 = (eta - 1.0) * (eta + 1.0);
+    let g = m::sqrt((e2 + u * u).max(0.0));
+    if g + u <= 0.0 {
+        return 1.0;
+    }
+    let gmu = e2 / (g + u);
+    let a = gmu / (g + u);
+    let b = (u * (g + u) - 1.0) / (u * gmu + 1.0);
     0.5 * a * a * (1.0 + b * b)
 }
 
@@ -145,12 +154,16 @@ impl Brdf for CookTorrance {
     }
 
     fn sample_continuous(&self, wi: Vec3, uc: f32, u: Vec2) -> Option<BrdfSample> {
-        sample_mixture(self, wi, uc, u, self.p_diffuse(wi), |u| {
-            reflect_about_half(wi, self.dist.sample_h(u))
+        // The lobe is drawn about wi lifted to the grazing floor (as pdf assumes); f and
+        // pdf are those of the given wi.
+        let wl = crate::geometry::lift_incident(wi);
+        sample_mixture(self, wi, uc, u, self.p_diffuse(wl), |u| {
+            reflect_about_half(wl, self.dist.sample_h(u))
         })
     }
 
     fn pdf_continuous(&self, wi: Vec3, wo: Vec3) -> f32 {
+        let wi = crate::geometry::lift_incident(wi);
         let p = self.p_diffuse(wi);
         let Some((wi, wo)) = pdf_pair(wi, wo) else {
             return 0.0;

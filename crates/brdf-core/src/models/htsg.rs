@@ -210,14 +210,20 @@ pub fn conductor_fresnel(c: f64, eta: f64, kappa: f64) -> f64 {
         return 1.0;
     }
     let c = c.min(1.0);
-    let s2 = 1.0 - c * c;
+    let c2 = c * c;
+    let s2 = 1.0 - c2;
     let (s, t) = (m::sqrt(s2), m::sqrt(s2) / c);
-    let b = eta * eta - kappa * kappa - s2;
+    // B = η² − κ² − s² as e + c² with e = η² − κ² − 1, so that for η = 1, κ = 0 (no
+    // interface) B, Q and a are exactly c², c², c and F is exactly 0, not rounding noise.
+    let e = (eta - 1.0) * (eta + 1.0) - kappa * kappa;
+    let b = e + c2;
     let q = m::sqrt(b * b + 4.0 * eta * eta * kappa * kappa);
     let a2 = 0.5 * (q + b);
     let b2 = 0.5 * (q - b);
     let a = m::sqrt(a2.max(0.0));
-    let fs = (a2 + b2 - 2.0 * a * c + c * c) / (a2 + b2 + 2.0 * a * c + c * c);
+    // a² + b² − 2ac + c² = (a − c)² + b², with a − c = (a² − c²)/(a + c).
+    let amc = 0.5 * (q + e - c2) / (a + c);
+    let fs = (amc * amc + b2) / (a2 + b2 + 2.0 * a * c + c2);
     let fp =
         fs * (a2 + b2 - 2.0 * a * s * t + s2 * t * t) / (a2 + b2 + 2.0 * a * s * t + s2 * t * t);
     0.5 * (fs + fp)

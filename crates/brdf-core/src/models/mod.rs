@@ -63,10 +63,13 @@ pub(crate) fn sample_mixture<B: Brdf + ?Sized>(
     BrdfSample::continuous(wo, brdf.eval(wi, wo), brdf.pdf_continuous(wi, wo))
 }
 
-/// The f64 unit pair for a pdf evaluation (wi above the horizon, wo above it), else `None`.
+/// The f64 unit pair for an analytic pdf (wi above the horizon, wo above it), else `None`:
+/// wi lifted to the grazing floor exactly as the samplers lift it
+/// ([`crate::geometry::lift_incident`]), wo as given (the pdf is a density in wo).
 #[inline]
 pub(crate) fn pdf_pair(wi: Vec3, wo: Vec3) -> Option<(DVec3, DVec3)> {
-    crate::geometry::upper_pair(wi, wo)
+    let wi = crate::geometry::lift_incident(wi);
+    crate::geometry::unit_pair(wi, wo)
 }
 
 /// Cosine-hemisphere density in f64, per unit solid angle.

@@ -97,10 +97,14 @@ impl Brdf for Phong {
     }
 
     fn sample_continuous(&self, wi: Vec3, uc: f32, u: Vec2) -> Option<BrdfSample> {
-        sample_mixture(self, wi, uc, u, self.p_diffuse, |u| self.lobe.sample(wi, u))
+        // The lobe is drawn about wi lifted to the grazing floor (as pdf assumes); f and
+        // pdf are those of the given wi.
+        let wl = crate::geometry::lift_incident(wi);
+        sample_mixture(self, wi, uc, u, self.p_diffuse, |u| self.lobe.sample(wl, u))
     }
 
     fn pdf_continuous(&self, wi: Vec3, wo: Vec3) -> f32 {
+        let wi = crate::geometry::lift_incident(wi);
         let Some((wi, wo)) = pdf_pair(wi, wo) else {
             return 0.0;
         };
