@@ -156,13 +156,15 @@ pub fn lift_to_grazing_floor(w: DVec3) -> DVec3 {
     DVec3::new(w.x * s, w.y * s, GRAZING_COS)
 }
 
-/// An f32 incident direction lifted to the grazing floor for an analytic sampler (unchanged
-/// when its cosine is at least [`GRAZING_COS`], or when it is not above the horizon).
-/// Half-vector samplers divide by wi·h, which a wi at z → 0 sends to 0; sampling and pdf both
-/// use the lifted wi, so the pdf stays the density of what was drawn and finite.
+/// An f32 incident direction lifted to the grazing floor (unchanged when its cosine is at
+/// least [`GRAZING_COS`], or when it is not above the horizon). f_r(wi, ·) is
+/// f_r(lift(wi), ·), so anything built from wi may use the lifted one: analytic samplers draw
+/// about it (half-vector samplers divide by wi·h, which a wi at z → 0 sends to 0), and a
+/// tree's peak hints come from it (the mirror direction of a wi at z = 10⁻³⁰ lies on the
+/// horizon, where every model is 0, and would hide a sharp lobe from the bound search).
 #[inline]
 #[must_use]
-pub(crate) fn lift_incident(wi: Vec3) -> Vec3 {
+pub fn lift_incident(wi: Vec3) -> Vec3 {
     if !above_horizon(wi) {
         return wi;
     }

@@ -534,6 +534,23 @@ impl Cell {
             .map_or(0, |q| q.iter().map(Cell::count).sum::<usize>())
     }
 
+    /// The rule applications [`refine_cells`] with this `tol` and `depth` visits below this
+    /// cell, memoised or not: the work of a plain adaptive integration, which depends only on
+    /// the values (not on what a cache kept). Call it on a cell `refine_cells` just refined.
+    pub fn applications(&self, tol: f64, depth: u32) -> u64 {
+        let Some(q) = &self.quads else {
+            return 0;
+        };
+        let fine: f64 = q.iter().map(|c| c.value).sum();
+        if depth == 0 || (fine - self.value).abs() <= tol {
+            return 4;
+        }
+        4 + q
+            .iter()
+            .map(|c| c.applications(0.5 * tol, depth - 1))
+            .sum::<u64>()
+    }
+
     /// Forgets the remembered quadrants more than `levels` levels below this cell. Values
     /// are unaffected: a forgotten application is recomputed bit for bit when needed.
     pub fn prune(&mut self, levels: u32) {
@@ -945,6 +962,68 @@ mod tests {
                     assert!(r.contains(c.p), "{r:?} {q} -> {}", c.p);
                     let back = prop.coordinates(DiskMap::Orthographic, c.w);
                     assert!((back - q).length() < 1e-6, "{r:?} {q} -> {back}");
+                }
+            }
+        }
+    }
+
+    /// Every point of a rim node's part of the disk lies in its proposal box (otherwise
+    /// rejection never proposes it: a hole in the sampled density).
+    #[test]
+    fn rim_boxes_cover_their_nodes() {
+        let mut seed = 7u64;
+        let mut u = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        // Every rim node at shallow depths; at deep ones, the rim nodes around the four
+        // tangent points (±1, 0), (0, ±1), where the charts' poles are.
+        let mut nodes = alloc::vec::Vec::new();
+        for depth in [2i32, 4, 6] {
+            let s = 2.0f64.powi(1 - depth);
+            let n = 1i64 << depth;
+            for k in 0..n * n {
+                nodes.push(Rect::square(
+                    -1.0 + (k % n) as f64 * s,
+                    -1.0 + (k / n) as f64 * s,
+                    s,
+                ));
+            }
+        }
+        for depth in [10i32, 15, 19] {
+            let s = 2.0f64.powi(1 - depth);
+            for i in -3..3 {
+                for j in 0..4 {
+                    let (a, b) = (f64::from(i) * s, f64::from(j) * s);
+                    nodes.push(Rect::square(-1.0 + b, a, s));
+                    nodes.push(Rect::square(1.0 - s - b, a, s));
+                    nodes.push(Rect::square(a, -1.0 + b, s));
+                    nodes.push(Rect::square(a, 1.0 - s - b, s));
+                }
+            }
+        }
+        for r in nodes {
+            {
+                let (near, far) = r.radius_range();
+                if far < 1.0 - 1e-12 || near >= 1.0 {
+                    continue;
+                }
+                let prop = Proposal::for_node(DiskMap::Orthographic, &r);
+                for _ in 0..64 {
+                    let p = r.min + (r.max - r.min) * DVec2::new(u(), u());
+                    let r2 = p.length_squared();
+                    if r2 >= 1.0 {
+                        continue;
+                    }
+                    let w = DVec3::new(p.x, p.y, m::sqrt(1.0 - r2));
+                    let q = prop.coordinates(DiskMap::Orthographic, w);
+                    let pad = (prop.hi - prop.lo) * 1e-9 + DVec2::splat(1e-12);
+                    assert!(
+                        q.cmpge(prop.lo - pad).all() && q.cmple(prop.hi + pad).all(),
+                        "{r:?} {prop:?}: {p} -> {q}"
+                    );
                 }
             }
         }

@@ -38,6 +38,15 @@ pub struct BuildConfig {
     pub max_depth: u8,
     /// Maximum number of nodes. Default 2²⁰.
     pub node_budget: u32,
+    /// Maximum number of f_r evaluations the build may spend (integration and bound search,
+    /// counted per rule application). Default 2³⁰ ≈ 1.1 × 10⁹: about 25 s of Cook–Torrance
+    /// on two cores, and 10× the most that any registry model's tree needed in the grazing
+    /// sweep (Oren–Nayar at cos θi = 10⁻⁴: 1.1 × 10⁸). Like the node budget it stops the
+    /// splitting between batches of nodes (so the tree stays deterministic), and the build
+    /// then ends typed ([`BuildError::Exhausted`]) unless what was built can already be
+    /// sampled. It bounds the build's time for every input, however expensive each node's
+    /// integration gets.
+    pub evaluation_budget: u64,
     /// Refine further, greedily by wasted volume, until the expected number of rejection
     /// trials per sample is at most this (SPEC §3). Default `None`: the seed's rule, whose
     /// bound E\[T\] ≤ 1/`split_threshold` is always enforced.
@@ -68,6 +77,7 @@ impl Default for BuildConfig {
             integration_depth: 8,
             max_depth: 20,
             node_budget: 1 << 20,
+            evaluation_budget: 1 << 30,
             target_trials: None,
             bound_safety: 1.02,
             bound_grid: 8,
@@ -117,6 +127,13 @@ impl BuildConfig {
         }
         if self.node_budget < 1 {
             return bad("node_budget", f64::from(self.node_budget), "at least 1");
+        }
+        if self.evaluation_budget < 1 {
+            return bad(
+                "evaluation_budget",
+                self.evaluation_budget as f64,
+                "at least 1",
+            );
         }
         if let Some(t) = self.target_trials
             && (t.is_nan() || t < 1.0)

@@ -8,7 +8,7 @@ use alloc::collections::BinaryHeap;
 use alloc::vec::Vec;
 use brdf_core::{Brdf, DiskMap, math as m};
 use core::cmp::Ordering;
-use core::sync::atomic::{AtomicUsize, Ordering as AtomicOrdering};
+use core::sync::atomic::{AtomicU64, AtomicUsize, Ordering as AtomicOrdering};
 use glam::{DVec2, DVec3, Vec3};
 
 /// No child: the node is a leaf.
@@ -147,6 +147,10 @@ struct Evaluation {
 /// stays below about 2 × 64 MiB plus 80 bytes per node.
 pub(crate) const CELL_CACHE_LIMIT: usize = 1 << 20;
 
+/// Parents split per batch of the breadth-first pass (between batches the evaluation budget
+/// is checked).
+const SPLIT_CHUNK: usize = 256;
+
 /// Everything a node evaluation needs: pure, shared by the worker threads.
 struct Context<'a, B: Brdf + ?Sized> {
     pub brdf: &'a B,
@@ -161,6 +165,11 @@ struct Context<'a, B: Brdf + ?Sized> {
     par_levels: u32,
     /// Integration cells remembered for the leaves (see [`CELL_CACHE_LIMIT`]).
     cached: AtomicUsize,
+    /// f_r evaluations spent so far (see [`BuildConfig::evaluation_budget`]).
+    spent: AtomicU64,
+    /// Evaluations per rule application (n² points; twice that where the angle chart
+    /// splits a node into pieces, counted as its mean).
+    per_application: u64,
 }
 
 impl<'a, B: Brdf + ?Sized> Context<'a, B> {
@@ -172,7 +181,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             IntegrationRule::GaussLegendre { n } => UnitRule::new(usize::from(n)),
         };
         let hints = brdf
-            .peak_hints(wi)
+            .peak_hints(brdf_core::geometry::lift_incident(wi))
             .as_slice()
             .iter()
             .map(|h| h.as_dvec3().normalize())
@@ -193,6 +202,15 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
                 0
             },
             cached: AtomicUsize::new(0),
+            spent: AtomicU64::new(0),
+            per_application: {
+                let n = match config.rule {
+                    IntegrationRule::Midpoint { n } | IntegrationRule::GaussLegendre { n } => {
+                        u64::from(n)
+                    }
+                };
+                2 * n * n
+            },
         };
         let root = Rect::square(-1.0, -1.0, 2.0);
         let f = |w: DVec3| ctx.f(w);
@@ -210,6 +228,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             ctx.par_levels,
         );
         ctx.tol_floor = config.integration_tolerance * 1e-2 * estimate.abs();
+        ctx.spend((1 + cell.applications(tol, 6)) * ctx.per_application);
         (ctx, cell)
     }
 
@@ -272,6 +291,12 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             self.par_levels,
         )
         .max(0.0);
+        // The node's integration as if nothing were memoised (so the count, and the budget's
+        // verdict, do not depend on the cache), and the bound search's grid, hints and three
+        // compass searches of at most 400 steps.
+        let g = u64::from(self.config.bound_grid) + 1;
+        let depth = u32::from(self.config.integration_depth);
+        self.spend((1 + cell.applications(tol, depth)) * self.per_application + g * g + 1200);
         // A bound below the node's mean height is certainly wrong (a peak between the points
         // looked at): take four times the mean instead, so that P = ¼ splits the node.
         let mean = if prop.area() > 0.0 {
@@ -473,6 +498,17 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         Some(cell)
     }
 
+    /// Counts `n` evaluations spent.
+    fn spend(&self, n: u64) {
+        self.spent.fetch_add(n, AtomicOrdering::Relaxed);
+    }
+
+    /// Whether the evaluation budget is spent (checked between batches of nodes, whose
+    /// work does not depend on the order the threads did it in).
+    fn overspent(&self) -> bool {
+        self.spent.load(AtomicOrdering::Relaxed) > self.config.evaluation_budget
+    }
+
     /// Counts out a leaf's cells as it hands them to its children.
     fn forget(&self, cells: &Option<Cell>) {
         if let Some(c) = cells {
@@ -603,10 +639,25 @@ impl Quadtree {
                     split.push(i);
                 }
             }
-            let before: f64 = split.iter().map(|&i| tree.nodes[i as usize].v1).sum();
-            frontier = tree.split(ctx, &split, &mut pending);
-            let after: f64 = frontier.iter().map(|&i| tree.nodes[i as usize].v1).sum();
-            total += after - before;
+            // In chunks, so that the evaluation budget stops a wide level part-way; the
+            // children are the same nodes in the same order either way.
+            let mut next = Vec::with_capacity(4 * split.len());
+            for chunk in split.chunks(SPLIT_CHUNK) {
+                if ctx.overspent() {
+                    tree.budget_exhausted = true;
+                    break;
+                }
+                let before: f64 = chunk.iter().map(|&i| tree.nodes[i as usize].v1).sum();
+                let children = tree.split(ctx, chunk, &mut pending);
+                let after: f64 = children.iter().map(|&i| tree.nodes[i as usize].v1).sum();
+                total += after - before;
+                next.extend(children);
+            }
+            frontier = if tree.budget_exhausted {
+                Vec::new()
+            } else {
+                next
+            };
         }
         // The seed's rule promises E[T] ≤ 1/threshold; the waste cut-off above can leave rim
         // leaves with P < threshold, so enforce the promise (and any stricter target).
@@ -723,7 +774,7 @@ impl Quadtree {
             if batch.is_empty() {
                 break;
             }
-            if self.nodes.len() + 4 * batch.len() > cfg.node_budget as usize {
+            if self.nodes.len() + 4 * batch.len() > cfg.node_budget as usize || ctx.overspent() {
                 self.budget_exhausted = true;
                 break;
             }

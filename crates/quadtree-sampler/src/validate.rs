@@ -733,7 +733,7 @@ impl<'a, B: Brdf + ?Sized> Validation<'a, B> {
         // The model's own peak directions (data of the model, not of any sampler): a lobe
         // narrower than a cell's node spacing is found there (see `adaptive`).
         let hints: Vec<DVec3> = brdf
-            .peak_hints(wi)
+            .peak_hints(brdf_core::geometry::lift_incident(wi))
             .as_slice()
             .iter()
             .map(|h| h.as_dvec3())
