@@ -666,12 +666,20 @@ impl Quadtree {
         });
         tree.refine_to_target(ctx, target, &mut pending);
         tree.sum_up();
-        if tree.volume().is_nan() || tree.volume() <= 0.0 {
+        let empty = tree.volume().is_nan() || tree.volume() <= 0.0;
+        // Nothing integrated and nothing seen by any bound search: f_r is 0 for this wi.
+        // (Nothing integrated but a bound > 0: f_r is there, narrower than the budget let
+        // the integration look: exhausted.)
+        if empty && tree.leaves().all(|(_, n)| n.bound <= 0.0) {
             return Err(BuildError::ZeroBrdf {
                 model: ctx.brdf.name(),
             });
         }
-        let expected_trials = tree.stats().expected_trials;
+        let expected_trials = if empty {
+            f64::INFINITY
+        } else {
+            tree.stats().expected_trials
+        };
         if expected_trials.is_nan() || expected_trials > crate::MAX_USABLE_EXPECTED_TRIALS {
             return Err(BuildError::Exhausted {
                 model: ctx.brdf.name(),
