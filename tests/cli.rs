@@ -702,3 +702,126 @@ fn bake_then_sample_pdf_and_test_baked() {
     assert!(!dir.join("m.bake").exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The robustness contract at the command line: finite numbers at grazing, a zero f_r as one
+/// typed error (exit 2, no file), an inconclusive test as exit 3, and `test --out` files
+/// complete or absent.
+#[test]
+fn grazing_zero_and_inconclusive_runs_have_their_own_outcomes() {
+    let parse = |o: &Output| -> Vec<f64> {
+        stdout(o)
+            .split_whitespace()
+            .map(|t| t.parse::<f64>().unwrap())
+            .collect()
+    };
+    let models = [
+        "lambert",
+        "phong",
+        "blinn-phong",
+        "lewis-phong",
+        "cook-torrance",
+        "htsg",
+        "poulin-fournier",
+        "oren-nayar",
+        "ward",
+        "schlick",
+        "strauss",
+    ];
+    for m in models {
+        let o = brdf(
+            &["eval", "--model", m],
+            "1 0 1e-20 -1 0 1e-20\n1 0 1e-45 -1 0 1e-45\n0.6 0 0.8 -0.6 0 1e-38\n",
+        );
+        assert!(o.status.success(), "{m}");
+        let v = parse(&o);
+        assert_eq!(v.len(), 9, "{m}");
+        assert!(v.iter().all(|x| x.is_finite() && *x >= 0.0), "{m}: {v:?}");
+    }
+    for m in ["cook-torrance", "ward", "schlick", "strauss"] {
+        for mode in ["rejection", "warp", "analytic", "table"] {
+            let o = brdf(
+                &["pdf", "--model", m, "--wi", "1,0,1e-40", "--mode", mode],
+                "-1 0 1e-40\n-1 0 1e-3\n0 0 1\n",
+            );
+            assert!(o.status.success(), "{m} {mode}: {:?}", o);
+            let v = parse(&o);
+            assert!(
+                v.len() == 3 && v.iter().all(|x| x.is_finite() && *x >= 0.0),
+                "{m} {mode}: {v:?}"
+            );
+        }
+    }
+    // f_r ≡ 0: typed, exit 2, and the output file is not created.
+    let dir = std::env::temp_dir().join(format!("brdf-cli-robust-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("zero.bin");
+    for mode in ["rejection", "warp", "table"] {
+        let o = brdf(
+            &[
+                "sample",
+                "--model",
+                "cook-torrance",
+                "--param",
+                "f0=0",
+                "--wi",
+                "0,0,1",
+                "--count",
+                "10",
+                "--mode",
+                mode,
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            "",
+        );
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{mode}: {err}");
+        assert!(err.contains("0 everywhere"), "{mode}: {err}");
+        assert!(!out.exists(), "{mode}");
+    }
+    // Too few samples to judge: exit 3, in the table and in the JSON.
+    let o = brdf(&["test", "--model", "lambert", "--samples", "1"], "");
+    assert_eq!(o.status.code(), Some(3), "{}", stdout(&o));
+    assert!(stdout(&o).contains("INCONCLUSIVE"));
+    let o = brdf(
+        &["test", "--model", "lambert", "--samples", "1", "--json"],
+        "",
+    );
+    assert_eq!(o.status.code(), Some(3));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["verdict"], "inconclusive");
+    assert_eq!(v["passed"], false);
+    // An image that cannot be written (its path is a directory): exit 2, no temporary left.
+    let images = dir.join("images");
+    std::fs::create_dir_all(images.join("lambert-rejection-wi0-square.png")).unwrap();
+    let o = brdf(
+        &[
+            "test",
+            "--model",
+            "lambert",
+            "--samples",
+            "20000",
+            "--cells",
+            "4",
+            "--grid",
+            "square",
+            "--wi",
+            "0,0,1",
+            "--out",
+            images.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let left: Vec<_> = std::fs::read_dir(&images)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    assert_eq!(left, ["lambert-rejection-wi0-square.png"], "{left:?}");
+    std::fs::remove_dir_all(&dir).ok();
+}
