@@ -8,6 +8,7 @@
 //!   [`registry`], frames, disk maps and analytic warps. `no_std` + `alloc`.
 //! - [`quadtree_sampler`]: the seed's quadtree and its samplers.
 //! - [`mod@bench`]: the model sets and the environment the benchmarks share.
+//! - [`text`]: the command line's parsers of direction lines and `x,y,z` vectors.
 //!
 //! ```
 //! use brdf_sampling::{Brdf, registry};
@@ -20,6 +21,7 @@
 //! ```
 
 pub mod bench;
+pub mod text;
 
 /// The random number generator of the examples (PCG64) and the traits that seed it and draw
 /// from it: what the samplers' `rng` arguments take, re-exported so that the one dependency

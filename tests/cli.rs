@@ -184,10 +184,19 @@ fn eval_matches_the_formulas_of_models_md() {
         assert_eq!(lines.len(), pairs.len());
         for (p, line) in pairs.iter().zip(lines) {
             let got: Vec<f64> = line.split(' ').map(|t| t.parse().unwrap()).collect();
+            // Normalised, then lifted to the documented grazing floor (cos θ ≥ 10⁻⁴, same
+            // azimuth: `geometry::GRAZING_COS`), which is part of every model's definition.
             let d64 = |a: &[f32]| {
                 let v = [f64::from(a[0]), f64::from(a[1]), f64::from(a[2])];
                 let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-                [v[0] / l, v[1] / l, v[2] / l]
+                let w = [v[0] / l, v[1] / l, v[2] / l];
+                let floor = 1e-4;
+                if w[2] > 0.0 && w[2] < floor {
+                    let s = ((1.0 - floor) * (1.0 + floor)).sqrt() / w[0].hypot(w[1]);
+                    [w[0] * s, w[1] * s, floor]
+                } else {
+                    w
+                }
             };
             let (wi, wo) = (d64(&p[..3]), d64(&p[3..]));
             for (ch, &g) in got.iter().enumerate() {
@@ -823,5 +832,40 @@ fn grazing_zero_and_inconclusive_runs_have_their_own_outcomes() {
         .map(|e| e.unwrap().file_name().into_string().unwrap())
         .collect();
     assert_eq!(left, ["lambert-rejection-wi0-square.png"], "{left:?}");
+    // A flag the mode ignores: a warning on stderr, the run as before.
+    let o = brdf(
+        &[
+            "sample",
+            "--model",
+            "phong",
+            "--wi",
+            "0,0,1",
+            "--count",
+            "5",
+            "--mode",
+            "table",
+            "--map",
+            "concentric",
+            "--target-trials",
+            "1.2",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        "",
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("warning: --map") && err.contains("warning: --target-trials"),
+        "{err}"
+    );
+    // A bench filter that selects nothing, and a gigabyte-free error quote.
+    let o = brdf(&["bench", "--quick", "--only", "no-such-set"], "");
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no set matches"));
+    let long = format!("{}\n", "9".repeat(100_000));
+    let o = brdf(&["eval", "--model", "lambert"], &long);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(o.stderr.len() < 400, "{} bytes of error", o.stderr.len());
     std::fs::remove_dir_all(&dir).ok();
 }

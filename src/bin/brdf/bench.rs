@@ -101,6 +101,26 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
     if samples < 2 {
         return Err(CliError::Usage("--samples must be at least 2".into()));
     }
+    // A filter that selects nothing is a mistake, not an empty report.
+    let selected = |label: &str| {
+        (!args.quick || bench::QUICK_SETS.contains(&label))
+            && args
+                .only
+                .as_ref()
+                .is_none_or(|o| label.contains(o.as_str()))
+    };
+    if !bench::SETS.iter().any(|&(label, _, _)| selected(label)) {
+        let labels: Vec<&str> = bench::SETS
+            .iter()
+            .map(|s| s.0)
+            .filter(|l| !args.quick || bench::QUICK_SETS.contains(l))
+            .collect();
+        return Err(CliError::Usage(format!(
+            "--only {}: no set matches (the sets are {})",
+            brdf_sampling::text::excerpt(args.only.as_deref().unwrap_or("")),
+            labels.join(", ")
+        )));
+    }
     let envs = [Environment::default(), Environment::glint()];
     let wi = bench::wi();
     let serial = rayon::ThreadPoolBuilder::new()
@@ -123,14 +143,7 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
     let mut table = String::new();
     let mut baked_table = String::new();
     for &(label, name, params) in bench::SETS {
-        if args.quick && !bench::QUICK_SETS.contains(&label) {
-            continue;
-        }
-        if args
-            .only
-            .as_ref()
-            .is_some_and(|o| !label.contains(o.as_str()))
-        {
+        if !selected(label) {
             continue;
         }
         let brdf = bench::model(name, params)?;

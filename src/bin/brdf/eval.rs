@@ -23,32 +23,16 @@ pub(crate) fn run(
             break;
         }
         lineno += 1;
-        let mut nums = [0.0f32; 6];
-        let mut count = 0;
-        for tok in line.split_ascii_whitespace() {
-            if count == 6 {
-                count += 1;
-                break;
-            }
-            nums[count] = tok.parse().map_err(|_| CliError::Input {
-                line: lineno,
-                message: format!("`{tok}` is not a number"),
-            })?;
-            count += 1;
-        }
-        match count {
-            0 => continue,
-            6 => {}
-            _ => {
+        let nums = match brdf_sampling::text::parse_numbers::<6>(&line, "wix wiy wiz wox woy woz") {
+            Ok(Some(n)) => n,
+            Ok(None) => continue,
+            Err(e) => {
                 return Err(CliError::Input {
                     line: lineno,
-                    message: format!(
-                        "expected 6 numbers `wix wiy wiz wox woy woz`, got `{}`",
-                        line.trim_end()
-                    ),
+                    message: e.to_string(),
                 });
             }
-        }
+        };
         // Validate, but hand eval the exact parsed vector: it renormalises in f64 itself, and
         // rounding a normalised copy to f32 first would move deep lobe tails by ~1e-5.
         let dir = |i: usize, name: &str| {

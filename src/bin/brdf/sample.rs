@@ -140,14 +140,7 @@ impl DirectionSampler for BakedAtWi {
 
 /// Parses `x,y,z` into a direction (not yet normalised).
 pub(crate) fn parse_vec3(text: &str, what: &str) -> Result<Vec3, CliError> {
-    let parts: Vec<&str> = text.split(',').collect();
-    let nums: Result<Vec<f32>, _> = parts.iter().map(|p| p.trim().parse::<f32>()).collect();
-    match nums {
-        Ok(v) if v.len() == 3 => Ok(Vec3::new(v[0], v[1], v[2])),
-        _ => Err(CliError::Usage(format!(
-            "{what} `{text}`: expected three comma-separated numbers x,y,z"
-        ))),
-    }
+    brdf_sampling::text::parse_vec3(text).map_err(|e| CliError::Usage(format!("{what} {e}")))
 }
 
 /// Reads the rejection sampler's bound-violation count after sampling.
@@ -168,11 +161,40 @@ pub(crate) struct Built<'a> {
 /// Parses and checks `--wi`.
 pub(crate) fn parse_wi(text: &str) -> Result<Vec3, CliError> {
     unit_direction_above(parse_vec3(text, "--wi")?)
-        .map_err(|e| CliError::Usage(format!("--wi {text}: {e}")))
+        .map_err(|e| CliError::Usage(format!("--wi {}: {e}", brdf_sampling::text::excerpt(text))))
 }
 
 fn build_from<'a>(brdf: &'a dyn Brdf, args: &SamplerArgs) -> Result<Built<'a>, CliError> {
+    warn_ignored(&args.options);
     build(brdf, parse_wi(&args.wi)?, &args.options)
+}
+
+/// The flags the chosen mode does not use, each with why (empty when all apply). A baked
+/// sampler's own warning is [`load_baked`]'s.
+pub(crate) fn ignored_flags(options: &SamplerOptions) -> Vec<String> {
+    let mut out = Vec::new();
+    if options.loaded.is_some() {
+        return out;
+    }
+    let mode = format!("{:?}", options.mode).to_lowercase();
+    if options.map != MapArg::Orthographic && options.mode != Mode::Rejection {
+        out.push(format!(
+            "--map applies to rejection mode only (warp always uses the concentric map); ignored with --mode {mode}"
+        ));
+    }
+    if options.target_trials.is_some() && !matches!(options.mode, Mode::Rejection | Mode::Warp) {
+        out.push(format!(
+            "--target-trials applies to the quadtree modes (rejection, warp); ignored with --mode {mode}"
+        ));
+    }
+    out
+}
+
+/// Prints [`ignored_flags`] on stderr as warnings (the CLI only extends: not an error).
+pub(crate) fn warn_ignored(options: &SamplerOptions) {
+    for w in ignored_flags(options) {
+        eprintln!("brdf: warning: {w}");
+    }
 }
 
 /// Builds the sampler `args` names for `brdf` at `wi` (unit, above the horizon).
@@ -410,26 +432,15 @@ pub(crate) fn run_pdf(
             break;
         }
         lineno += 1;
-        let toks: Vec<&str> = line.split_ascii_whitespace().collect();
-        if toks.is_empty() {
-            continue;
-        }
         let bad = |message: String| CliError::Input {
             line: lineno,
             message,
         };
-        if toks.len() != 3 {
-            return Err(bad(format!(
-                "expected 3 numbers `wox woy woz`, got `{}`",
-                line.trim_end()
-            )));
-        }
-        let mut v = [0.0f32; 3];
-        for (k, t) in toks.iter().enumerate() {
-            v[k] = t
-                .parse()
-                .map_err(|_| bad(format!("`{t}` is not a number")))?;
-        }
+        let v = match brdf_sampling::text::parse_numbers::<3>(&line, "wox woy woz") {
+            Ok(Some(v)) => v,
+            Ok(None) => continue,
+            Err(e) => return Err(bad(e.to_string())),
+        };
         let wo = unit_direction(Vec3::from_array(v)).map_err(|e| bad(format!("wo: {e}")))?;
         out.write_all(fmt.format(built.sampler.pdf(wo)).as_bytes())?;
         out.write_all(b"\n")?;

@@ -261,6 +261,7 @@ pub(crate) fn run(
         std::fs::create_dir_all(dir)
             .map_err(|e| CliError::Usage(format!("--out {}: {e}", dir.display())))?;
     }
+    sample::warn_ignored(&args.options);
     let baked = args.options.loaded.is_some();
     // A baked sampler is judged on its own pdf (it follows f·cos only on its grid), plus one
     // test per wi that its mean weight is the albedo.
