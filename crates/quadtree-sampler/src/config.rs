@@ -3,6 +3,9 @@
 use crate::error::BuildError;
 use brdf_core::DiskMap;
 
+/// The evaluations each built node adds to [`BuildConfig::evaluation_budget`].
+pub const EVALUATIONS_PER_NODE: u64 = 4096;
+
 /// The per-node integration rule (applied in the node's chart coordinates, adaptively).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum IntegrationRule {
@@ -38,14 +41,16 @@ pub struct BuildConfig {
     pub max_depth: u8,
     /// Maximum number of nodes. Default 2²⁰.
     pub node_budget: u32,
-    /// Maximum number of f_r evaluations the build may spend (integration and bound search,
-    /// counted per rule application). Default 2³⁰ ≈ 1.1 × 10⁹: about 25 s of Cook–Torrance
-    /// on two cores, and 10× the most that any registry model's tree needed in the grazing
-    /// sweep (Oren–Nayar at cos θi = 10⁻⁴: 1.1 × 10⁸). Like the node budget it stops the
-    /// splitting between batches of nodes (so the tree stays deterministic), and the build
-    /// then ends typed ([`BuildError::Exhausted`]) unless what was built can already be
-    /// sampled. It bounds the build's time for every input, however expensive each node's
-    /// integration gets.
+    /// The f_r evaluations the build may spend (integration and bound search, counted per
+    /// rule application) beyond [`EVALUATIONS_PER_NODE`] for every node it has built.
+    /// Default 2²⁸ ≈ 2.7 × 10⁸: 4× the most a small registry tree needed in the grazing
+    /// sweep (Cook–Torrance m = 0.05 at cos θi = 10⁻⁴: 7 × 10⁷ for 1 221 nodes), about 8 s
+    /// of Cook–Torrance on two cores; large trees (Oren–Nayar's target-mode tree of 3 × 10⁵
+    /// nodes) live on the per-node allowance. Like the node budget it stops the splitting
+    /// between batches of nodes (so the tree stays deterministic), and the build then ends
+    /// typed ([`BuildError::Exhausted`]) unless what was built can already be sampled. It
+    /// bounds the build's time when each node's integration gets expensive (a lobe too
+    /// sharp for the tree's depth), where the node budget alone would allow hours.
     pub evaluation_budget: u64,
     /// Refine further, greedily by wasted volume, until the expected number of rejection
     /// trials per sample is at most this (SPEC §3). Default `None`: the seed's rule, whose
@@ -77,7 +82,7 @@ impl Default for BuildConfig {
             integration_depth: 8,
             max_depth: 20,
             node_budget: 1 << 20,
-            evaluation_budget: 1 << 30,
+            evaluation_budget: 1 << 28,
             target_trials: None,
             bound_safety: 1.02,
             bound_grid: 8,

@@ -86,7 +86,7 @@ pub use baked::{
     GRID_THETA_MAX_DEG, MAX_TREES, PhiDomain, Role, WorldBsdf,
 };
 pub use brdf_core;
-pub use config::{BuildConfig, IntegrationRule};
+pub use config::{BuildConfig, EVALUATIONS_PER_NODE, IntegrationRule};
 pub use encoder::{Encoder, refleja};
 pub use error::BuildError;
 pub use packed::{PackedNode, PackedTree, Selected};

@@ -503,10 +503,14 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         self.spent.fetch_add(n, AtomicOrdering::Relaxed);
     }
 
-    /// Whether the evaluation budget is spent (checked between batches of nodes, whose
-    /// work does not depend on the order the threads did it in).
-    fn overspent(&self) -> bool {
-        self.spent.load(AtomicOrdering::Relaxed) > self.config.evaluation_budget
+    /// Whether the evaluation budget is spent with `nodes` built (checked between batches
+    /// of nodes, whose work does not depend on the order the threads did it in).
+    fn overspent(&self, nodes: usize) -> bool {
+        let allowed = self
+            .config
+            .evaluation_budget
+            .saturating_add((nodes as u64).saturating_mul(crate::config::EVALUATIONS_PER_NODE));
+        self.spent.load(AtomicOrdering::Relaxed) > allowed
     }
 
     /// Counts out a leaf's cells as it hands them to its children.
@@ -643,7 +647,7 @@ impl Quadtree {
             // children are the same nodes in the same order either way.
             let mut next = Vec::with_capacity(4 * split.len());
             for chunk in split.chunks(SPLIT_CHUNK) {
-                if ctx.overspent() {
+                if ctx.overspent(tree.nodes.len()) {
                     tree.budget_exhausted = true;
                     break;
                 }
@@ -782,7 +786,9 @@ impl Quadtree {
             if batch.is_empty() {
                 break;
             }
-            if self.nodes.len() + 4 * batch.len() > cfg.node_budget as usize || ctx.overspent() {
+            if self.nodes.len() + 4 * batch.len() > cfg.node_budget as usize
+                || ctx.overspent(self.nodes.len())
+            {
                 self.budget_exhausted = true;
                 break;
             }

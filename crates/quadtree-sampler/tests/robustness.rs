@@ -198,11 +198,15 @@ fn budgets_stop_the_build_typed_and_deterministically() {
     let b = model("cook-torrance", &["m=0.05"]);
     let wi = Vec3::new(0.9, 0.0, 0.19f32.sqrt());
     let mut usable_and_stopped = 0;
-    for budget in (12..28).map(|e| 1u64 << e) {
-        let cfg = BuildConfig {
-            evaluation_budget: budget,
-            ..BuildConfig::default()
-        };
+    let by_evaluations = (12..28).map(|e| BuildConfig {
+        evaluation_budget: 1u64 << e,
+        ..BuildConfig::default()
+    });
+    let by_nodes = [13, 41, 101, 201, 401].map(|n| BuildConfig {
+        node_budget: n,
+        ..BuildConfig::default()
+    });
+    for cfg in by_evaluations.chain(by_nodes) {
         let par = Quadtree::new(&*b, wi, cfg);
         let ser = Quadtree::new(
             &*b,
@@ -212,7 +216,7 @@ fn budgets_stop_the_build_typed_and_deterministically() {
                 ..cfg
             },
         );
-        assert_eq!(par, ser, "budget {budget}");
+        assert_eq!(par, ser, "{cfg:?}");
         if let Ok(t) = &par
             && t.stats().budget_exhausted
         {

@@ -241,11 +241,20 @@ impl Worker {
 }
 
 impl Drop for Worker {
+    /// Tells the thread to stop (it checks between stages) and waits for it briefly; a thread
+    /// still inside one long build is left to finish on its own, so that dropping the viewer
+    /// (a `--timeout` that expired, a closed window) never waits on a build.
     fn drop(&mut self) {
         self.latest.store(u64::MAX, Ordering::SeqCst);
         self.requests = None;
         if let Some(t) = self.thread.take() {
-            let _ = t.join();
+            let start = std::time::Instant::now();
+            while !t.is_finished() && start.elapsed() < std::time::Duration::from_millis(200) {
+                std::thread::sleep(std::time::Duration::from_millis(2));
+            }
+            if t.is_finished() {
+                let _ = t.join();
+            }
         }
     }
 }
