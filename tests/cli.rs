@@ -723,20 +723,10 @@ fn grazing_zero_and_inconclusive_runs_have_their_own_outcomes() {
             .map(|t| t.parse::<f64>().unwrap())
             .collect()
     };
-    let models = [
-        "lambert",
-        "phong",
-        "blinn-phong",
-        "lewis-phong",
-        "cook-torrance",
-        "htsg",
-        "poulin-fournier",
-        "oren-nayar",
-        "ward",
-        "schlick",
-        "strauss",
-    ];
-    for m in models {
+    let models = brdf_sampling::registry::models()
+        .iter()
+        .filter(|m| !m.delta);
+    for m in models.map(|m| m.name) {
         let o = brdf(
             &["eval", "--model", m],
             "1 0 1e-20 -1 0 1e-20\n1 0 1e-45 -1 0 1e-45\n0.6 0 0.8 -0.6 0 1e-38\n",
