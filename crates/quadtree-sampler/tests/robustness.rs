@@ -5,7 +5,7 @@
 //! The CI part sweeps z = 10⁻ᵏ at a few k; the full sweep (k = 1…45, every model, both maps,
 //! every mode) is behind `#[ignore]`:
 //! `cargo test --release -p quadtree-sampler --features rayon --test robustness -- --ignored`
-//! (about 4 minutes on 2 cores). `cargo run --release -p quadtree-sampler --features rayon
+//! (about 7 minutes on 2 cores). `cargo run --release -p quadtree-sampler --features rayon
 //! --example grazing_sweep` prints the table (time, nodes, E[T], albedo, outcome).
 
 use brdf_core::geometry::GRAZING_COS;
@@ -125,7 +125,7 @@ fn grazing_incidence_converges_to_the_floor() {
 
 /// The full sweep: k = 1…45, every model, both maps, every mode.
 #[test]
-#[ignore = "about 4 minutes on 2 cores; run with --ignored"]
+#[ignore = "about 7 minutes on 2 cores; run with --ignored"]
 fn grazing_sweep_full() {
     let ks: Vec<i32> = (1..=45).collect();
     sweep(&ks, SETS, true);
