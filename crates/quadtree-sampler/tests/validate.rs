@@ -3,7 +3,7 @@
 
 use brdf_core::{Brdf, DiskMap, registry};
 use glam::Vec3;
-use quadtree_sampler::validate::{CellGrid, Report, Validation, sidak};
+use quadtree_sampler::validate::{CellGrid, Report, Validation, Verdict, sidak};
 use quadtree_sampler::{
     Baseline, BaselineSampler, BuildConfig, DEFAULT_TABLE_RES, DirectionSampler, QuadtreeSampler,
     Sample, TableSampler,
@@ -160,6 +160,51 @@ fn a_five_percent_error_in_one_quadrant_is_rejected() {
             c.statistic, c.dof, c.p_value
         );
         assert!(c.p_value < sidak(0.01, TESTS));
+    }
+}
+
+/// A sampler that never draws anything, whatever pdf it claims.
+struct Nothing<'a>(QuadtreeSampler<'a, dyn Brdf>);
+
+impl DirectionSampler for Nothing<'_> {
+    fn name(&self) -> &'static str {
+        "nothing"
+    }
+
+    fn sample(&self, _rng: &mut dyn Rng) -> Option<Sample> {
+        None
+    }
+
+    fn pdf(&self, wo: Vec3) -> f32 {
+        self.0.pdf(wo)
+    }
+}
+
+/// The three verdicts: a correct sampler passes; too few samples for any χ² is
+/// inconclusive (not a rejection); a sampler that loses every sample is rejected, against
+/// its own pdf too, however few samples were drawn (a rejection outranks inconclusive).
+#[test]
+fn verdicts_tell_rejected_from_inconclusive() {
+    let b = model("lambert", &[]);
+    let wi = dir(20.0, 0.0);
+    let v = Validation::new(&*b, wi, grids()[0], 1e-7).unwrap();
+    let q = || QuadtreeSampler::new(&*b, wi, BuildConfig::default()).unwrap();
+    let r = run(&v, &q(), 4);
+    assert_eq!(
+        (r.verdict(), r.verdict_own()),
+        (Verdict::Passed, Verdict::Passed)
+    );
+    let mut rng = Pcg64::seed_from_u64(5);
+    let few = v.test(&q(), 1, &mut rng, 0.01);
+    assert_eq!(few.verdict(), Verdict::Inconclusive, "{:?}", few.reasons);
+    assert_eq!(few.verdict_own(), Verdict::Inconclusive);
+    assert!(!few.passed() && few.reasons.is_empty() && !few.inconclusive.is_empty());
+    for samples in [1, SAMPLES] {
+        let mut rng = Pcg64::seed_from_u64(6);
+        let lost = v.test(&Nothing(q()), samples, &mut rng, 0.01);
+        assert_eq!(lost.verdict(), Verdict::Rejected, "{samples}");
+        assert_eq!(lost.verdict_own(), Verdict::Rejected, "{samples}");
+        assert!(lost.own_reasons.iter().any(|r| r.contains("every one")));
     }
 }
 
