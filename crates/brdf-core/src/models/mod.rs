@@ -63,12 +63,12 @@ pub(crate) fn sample_mixture<B: Brdf + ?Sized>(
     BrdfSample::continuous(wo, brdf.eval(wi, wo), brdf.pdf_continuous(wi, wo))
 }
 
-/// The f64 unit pair for an analytic pdf (wi above the horizon, wo above it), else `None`:
-/// wi lifted to the grazing floor exactly as the samplers lift it
-/// ([`crate::geometry::lift_incident`]), wo as given (the pdf is a density in wo).
+/// The f64 unit pair for an analytic pdf (wi above the horizon, wo above it), else `None`.
+/// Callers pass wi already lifted to the grazing floor, exactly as their samplers lift it
+/// ([`crate::geometry::lift_incident`], once, at the top of `pdf_continuous`); wo is taken
+/// as given (the pdf is a density in wo).
 #[inline]
 pub(crate) fn pdf_pair(wi: Vec3, wo: Vec3) -> Option<(DVec3, DVec3)> {
-    let wi = crate::geometry::lift_incident(wi);
     crate::geometry::unit_pair(wi, wo)
 }
 
