@@ -6,10 +6,7 @@
 #[macro_use]
 mod common;
 
-use brdf_sampling::quadtree_sampler::{
-    Baseline, BaselineSampler, BuildConfig, DEFAULT_MIX, DEFAULT_TABLE_RES, DirectionSampler,
-    QuadtreeSampler, TableSampler, WarpSampler,
-};
+use brdf_sampling::quadtree_sampler::{AnySampler, BuildConfig, DirectionSampler, SamplerMode};
 use criterion::{BenchmarkId, Criterion, Throughput};
 use rand_core::SeedableRng;
 use std::hint::black_box;
@@ -21,31 +18,15 @@ fn bench(c: &mut Criterion) {
     for &(label, name, params) in common::SETS {
         let brdf = common::model(name, params);
         let b = &*brdf;
-        let mut samplers: Vec<(&str, Box<dyn DirectionSampler + '_>)> = vec![
-            (
-                "quadtree",
-                Box::new(QuadtreeSampler::new(b, wi, BuildConfig::default()).unwrap()),
-            ),
-            (
-                "warp",
-                Box::new(WarpSampler::new(b, wi, BuildConfig::default(), DEFAULT_MIX).unwrap()),
-            ),
-            (
-                "uniform",
-                Box::new(BaselineSampler::new(b, wi, Baseline::Uniform).unwrap()),
-            ),
-            (
-                "cosine",
-                Box::new(BaselineSampler::new(b, wi, Baseline::Cosine).unwrap()),
-            ),
-            (
-                "analytic",
-                Box::new(BaselineSampler::new(b, wi, Baseline::Analytic).unwrap()),
-            ),
-            (
-                "table",
-                Box::new(TableSampler::new(b, wi, DEFAULT_TABLE_RES).unwrap()),
-            ),
+        let config = BuildConfig::default();
+        let build = |mode: SamplerMode, config| AnySampler::new(b, wi, mode, config).unwrap();
+        let mut samplers: Vec<(&str, AnySampler<_>)> = vec![
+            ("quadtree", build(SamplerMode::Rejection, config)),
+            ("warp", build(SamplerMode::Warp, config)),
+            ("uniform", build(SamplerMode::Uniform, config)),
+            ("cosine", build(SamplerMode::Cosine, config)),
+            ("analytic", build(SamplerMode::Analytic, config)),
+            ("table", build(SamplerMode::Table, config)),
         ];
         if !common::COSTLY.contains(&name) {
             let config = BuildConfig {
@@ -54,7 +35,7 @@ fn bench(c: &mut Criterion) {
             };
             samplers.push((
                 "quadtree-target-1.25",
-                Box::new(QuadtreeSampler::new(b, wi, config).unwrap()),
+                build(SamplerMode::Rejection, config),
             ));
         }
         let mut group = c.benchmark_group(format!("sample/{label}"));

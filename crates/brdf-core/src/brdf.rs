@@ -311,3 +311,89 @@ pub trait Brdf: Send + Sync + fmt::Debug {
         Ok(self.sample(wi, uc, u))
     }
 }
+
+/// Forwards every method of [`Brdf`] (provided ones included, so a model's overrides survive)
+/// through a pointer type, so that samplers can hold their model in whatever way the caller
+/// owns it: borrowed (`&B`), boxed, or shared (`Arc<dyn Brdf>`, the `'static` choice a scene
+/// stores).
+macro_rules! forward_brdf {
+    ($($ptr:ty),*) => {$(
+        impl<T: Brdf + ?Sized> Brdf for $ptr {
+            #[inline]
+            fn name(&self) -> &'static str {
+                (**self).name()
+            }
+            #[inline]
+            fn params(&self) -> ParamSet {
+                (**self).params()
+            }
+            #[inline]
+            fn eval(&self, wi: Vec3, wo: Vec3) -> Vec3 {
+                (**self).eval(wi, wo)
+            }
+            #[inline]
+            fn eval_luminance(&self, wi: Vec3, wo: Vec3) -> f32 {
+                (**self).eval_luminance(wi, wo)
+            }
+            #[inline]
+            fn is_delta(&self) -> bool {
+                (**self).is_delta()
+            }
+            #[inline]
+            fn delta_reflectance(&self, wi: Vec3) -> Vec3 {
+                (**self).delta_reflectance(wi)
+            }
+            #[inline]
+            fn symmetry(&self) -> Symmetry {
+                (**self).symmetry()
+            }
+            #[inline]
+            fn peak_hints(&self, wi: Vec3) -> PeakHints {
+                (**self).peak_hints(wi)
+            }
+            #[inline]
+            fn has_analytic_sampler(&self) -> bool {
+                (**self).has_analytic_sampler()
+            }
+            #[inline]
+            fn continuous_albedo_hint(&self, wi: Vec3) -> f32 {
+                (**self).continuous_albedo_hint(wi)
+            }
+            #[inline]
+            fn delta_probability(&self, wi: Vec3) -> f32 {
+                (**self).delta_probability(wi)
+            }
+            #[inline]
+            fn sample_continuous(&self, wi: Vec3, uc: f32, u: Vec2) -> Option<BrdfSample> {
+                (**self).sample_continuous(wi, uc, u)
+            }
+            #[inline]
+            fn pdf_continuous(&self, wi: Vec3, wo: Vec3) -> f32 {
+                (**self).pdf_continuous(wi, wo)
+            }
+            #[inline]
+            fn sample(&self, wi: Vec3, uc: f32, u: Vec2) -> Option<BrdfSample> {
+                (**self).sample(wi, uc, u)
+            }
+            #[inline]
+            fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+                (**self).pdf(wi, wo)
+            }
+            #[inline]
+            fn try_eval(&self, wi: Vec3, wo: Vec3) -> Result<Vec3, DirectionError> {
+                (**self).try_eval(wi, wo)
+            }
+            #[inline]
+            fn try_sample(
+                &self,
+                wi: Vec3,
+                uc: f32,
+                u: Vec2,
+            ) -> Result<Option<BrdfSample>, DirectionError> {
+                (**self).try_sample(wi, uc, u)
+            }
+        }
+    )*};
+}
+
+forward_brdf!(&T, alloc::boxed::Box<T>, alloc::sync::Arc<T>);

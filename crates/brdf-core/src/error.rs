@@ -75,9 +75,38 @@ pub enum ParamError {
     Constraint {
         /// The model.
         model: &'static str,
-        /// The constraint that failed, in words.
-        message: String,
+        /// The constraint that failed.
+        constraint: Constraint,
     },
+}
+
+/// A constraint between parameters (or between a parameter set and its model) that failed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Constraint {
+    /// kd + ks ≤ 1 in every channel (energy conservation of Lewis–Phong, Poulin–Fournier).
+    EnergyConservation {
+        /// kd + ks as given, RGB.
+        kd_plus_ks: [f32; 3],
+    },
+    /// The parameter set was made for another model.
+    OtherModel {
+        /// The model the parameters are for.
+        params_of: &'static str,
+    },
+}
+
+impl fmt::Display for Constraint {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::EnergyConservation {
+                kd_plus_ks: [r, g, b],
+            } => write!(
+                f,
+                "kd + ks must be <= 1 in every channel (got {r}, {g}, {b})"
+            ),
+            Self::OtherModel { params_of } => write!(f, "parameters are for model `{params_of}`"),
+        }
+    }
 }
 
 impl fmt::Display for ParamError {
@@ -102,7 +131,7 @@ impl fmt::Display for ParamError {
                 f,
                 "parameter `{name}` = {value} is out of its range {range}"
             ),
-            Self::Constraint { model, message } => write!(f, "model `{model}`: {message}"),
+            Self::Constraint { model, constraint } => write!(f, "model `{model}`: {constraint}"),
         }
     }
 }

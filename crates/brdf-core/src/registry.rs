@@ -9,7 +9,7 @@
 //! ```
 
 use crate::brdf::Brdf;
-use crate::error::ParamError;
+use crate::error::{Constraint, ParamError};
 use crate::models::{
     BlinnPhong, CookTorrance, Htsg, Lambert, LewisPhong, Mirror, OrenNayar, Phong, PoulinFournier,
     Schlick, Strauss, Ward,
@@ -74,7 +74,9 @@ impl ModelInfo {
         if params.model() != self.name {
             return Err(ParamError::Constraint {
                 model: self.name,
-                message: alloc::format!("parameters are for model `{}`", params.model()),
+                constraint: Constraint::OtherModel {
+                    params_of: params.model(),
+                },
             });
         }
         (self.build)(params)

@@ -736,7 +736,17 @@ mod registry_tests {
             "{e}"
         );
         let e = registry::create("lewis-phong", ["kd=0.6", "ks=0.5"]).unwrap_err();
-        assert!(matches!(e, ParamError::Constraint { .. }), "{e}");
+        match e {
+            ParamError::Constraint {
+                model: "lewis-phong",
+                constraint: brdf_core::Constraint::EnergyConservation { kd_plus_ks },
+            } => assert!((kd_plus_ks[0] - 1.1).abs() < 1e-6, "{kd_plus_ks:?}"),
+            ref other => panic!("{other:?}"),
+        }
+        assert_eq!(
+            e.to_string(),
+            "model `lewis-phong`: kd + ks must be <= 1 in every channel (got 1.1, 1.1, 1.1)"
+        );
         assert!(registry::create("lewis-phong", ["kd=0.5", "ks=0.5"]).is_ok());
         assert!(matches!(
             registry::create("nope", []),
@@ -779,10 +789,13 @@ mod registry_tests {
             Err(ParamError::Constraint { .. })
         ));
         let ward = registry::find("ward").unwrap();
-        assert!(
-            ward.build(&registry::find("phong").unwrap().defaults())
-                .is_err()
-        );
+        assert!(matches!(
+            ward.build(&registry::find("phong").unwrap().defaults()),
+            Err(ParamError::Constraint {
+                model: "ward",
+                constraint: brdf_core::Constraint::OtherModel { params_of: "phong" },
+            })
+        ));
     }
 }
 

@@ -1074,9 +1074,7 @@ impl BakedSampler {
             let s = &tables.slices[pick.slice];
             let w = match self.mode {
                 BakedMode::Rejection => {
-                    // 48 bits for the descent: u.x, refined by u.y below its last bit.
-                    let d = f64::from(u.x) + f64::from(u.y) * (1.0 / 16_777_216.0);
-                    let leaf = s.tree.select(d.min(1.0 - f64::EPSILON));
+                    let leaf = s.tree.select(crate::sampler::descent_uniform(u));
                     let Some((_, w, _, t)) = rejection_in_leaf(
                         &s.tree,
                         &leaf,
@@ -1254,8 +1252,8 @@ impl BakedSampler {
 /// A [`BakedSampler`] at one incident direction, as a [`crate::DirectionSampler`].
 #[derive(Clone, Copy, Debug)]
 pub struct BakedAt<'a> {
-    baked: &'a BakedSampler,
-    wi: Vec3,
+    pub(crate) baked: &'a BakedSampler,
+    pub(crate) wi: Vec3,
 }
 
 impl crate::DirectionSampler for BakedAt<'_> {
@@ -1266,9 +1264,7 @@ impl crate::DirectionSampler for BakedAt<'_> {
         }
     }
 
-    fn sample(&self, rng: &mut dyn Rng) -> Option<Sample> {
-        let uc = crate::uniform_f32(rng);
-        let u = Vec2::new(crate::uniform_f32(rng), crate::uniform_f32(rng));
+    fn sample_with(&self, uc: f32, u: Vec2, rng: &mut dyn Rng) -> Option<Sample> {
         self.baked
             .sample_unit(Role::Importance, self.wi, uc, u, rng)
     }
@@ -1328,9 +1324,7 @@ impl crate::DirectionSampler for BrokenAt<'_> {
         "broken baked"
     }
 
-    fn sample(&self, rng: &mut dyn Rng) -> Option<Sample> {
-        let uc = crate::uniform_f32(rng);
-        let u = Vec2::new(crate::uniform_f32(rng), crate::uniform_f32(rng));
+    fn sample_with(&self, uc: f32, u: Vec2, rng: &mut dyn Rng) -> Option<Sample> {
         let s = self
             .broken
             .0

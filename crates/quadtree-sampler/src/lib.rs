@@ -70,6 +70,7 @@ pub mod colormap;
 mod config;
 mod encoder;
 mod error;
+mod factory;
 mod packed;
 mod sampler;
 mod table;
@@ -89,10 +90,11 @@ pub use brdf_core;
 pub use config::{BuildConfig, EVALUATIONS_PER_NODE, IntegrationRule};
 pub use encoder::{Encoder, refleja};
 pub use error::BuildError;
+pub use factory::{AnySampler, SamplerMode};
 pub use packed::{PackedNode, PackedTree, Selected};
 pub use sampler::{
     Baseline, BaselineSampler, DirectionSampler, MAX_TRIALS, MAX_USABLE_EXPECTED_TRIALS,
-    QuadtreeSampler, Sample, uniform_f32, uniform_f64, weight_luminance,
+    QuadtreeSampler, Sample, descent_uniform, uniform_f32, uniform_f64, weight_luminance,
 };
 pub use table::{DEFAULT_TABLE_RES, TableSampler};
 pub use tree::{LEAF, Node, Quadtree, TreeStats, albedo_of_volume};

@@ -6,6 +6,7 @@ use crate::config::BuildConfig;
 use crate::error::BuildError;
 use crate::packed::{PackedTree, Selected};
 use crate::tree::{Quadtree, TreeStats, albedo_of_volume};
+use alloc::sync::Arc;
 use brdf_core::geometry::{above_horizon, luminance, unit_direction_above};
 use brdf_core::{Brdf, BrdfSample};
 use core::sync::atomic::{AtomicU64, Ordering};
@@ -24,6 +25,15 @@ pub fn uniform_f32<R: Rng + ?Sized>(rng: &mut R) -> f32 {
     (rng.next_u32() >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
 }
 
+/// The 48-bit descent uniform of a `u` pair: `u.x`, refined below its last bit by `u.y`, so
+/// that a tree deeper than 24 levels of probability is still resolved by 24-bit uniforms.
+#[inline]
+#[must_use]
+pub fn descent_uniform(u: Vec2) -> f64 {
+    let d = f64::from(u.x.clamp(0.0, 1.0)) + f64::from(u.y.clamp(0.0, 1.0)) * (1.0 / 16_777_216.0);
+    d.min(1.0 - f64::EPSILON)
+}
+
 /// One sampled outgoing direction (local frame), as every sampler here returns it: the
 /// workspace's one sample type, [`BrdfSample`] (wo, pdf per unit solid angle, f, weight, the
 /// delta flag and the rejection trials).
@@ -35,9 +45,24 @@ pub trait DirectionSampler: Send + Sync {
     /// A short name (`rejection`, `cosine`, ...).
     fn name(&self) -> &'static str;
 
-    /// Draws one direction, or `None` when the drawn direction carries no contribution (below
-    /// the horizon, or the rejection loop gave up); an estimator then scores 0.
-    fn sample(&self, rng: &mut dyn Rng) -> Option<Sample>;
+    /// Draws one direction from explicit uniforms in [0, 1) (pbrt's `Sample_f(uc, u)`): `uc`
+    /// for a discrete choice (a lobe, a neighbour tree; ignored by samplers without one), `u`
+    /// for the structure (the quadtree's descent, a warp, a table's inversion), and `rng` only
+    /// for what rejection needs beyond them (samplers without rejection draw nothing from it).
+    /// A renderer's stratified or low-discrepancy numbers drive it through `uc` and `u`.
+    /// `None` when the drawn direction carries no contribution (below the horizon, or the
+    /// rejection loop gave up); an estimator then scores 0.
+    fn sample_with(&self, uc: f32, u: Vec2, rng: &mut dyn Rng) -> Option<Sample>;
+
+    /// Draws one direction with every number taken from `rng`. The default draws `uc`, `u.x`,
+    /// `u.y` (24-bit f32 uniforms, in that order) and calls
+    /// [`DirectionSampler::sample_with`]; a sampler may draw its structure's numbers at a
+    /// finer resolution instead (the quadtree descends with a 53-bit uniform).
+    fn sample(&self, rng: &mut dyn Rng) -> Option<Sample> {
+        let uc = uniform_f32(rng);
+        let u = Vec2::new(uniform_f32(rng), uniform_f32(rng));
+        self.sample_with(uc, u, rng)
+    }
 
     /// The density of [`DirectionSampler::sample`] at `wo` (local), **per unit solid angle**.
     fn pdf(&self, wo: Vec3) -> f32;
@@ -89,8 +114,8 @@ pub(crate) fn rejection_in_leaf<R: Rng + ?Sized>(
 /// `Sync`). Rejection mode: the density is ∝ f_r·cos θ up to the leaf-integral error, and the
 /// reported pdf is f_r·cos θ·J/V (V the tree's volume, J the map's Jacobian).
 #[derive(Debug)]
-pub struct QuadtreeSampler<'a, B: Brdf + ?Sized> {
-    brdf: &'a B,
+pub struct QuadtreeSampler<B: Brdf = Arc<dyn Brdf>> {
+    brdf: B,
     wi: Vec3,
     config: BuildConfig,
     tree: PackedTree,
@@ -108,12 +133,12 @@ pub const MAX_TRIALS: u32 = 1 << 20;
 /// rule promises 2, and only a budget (nodes, depth) that stopped the build can leave more.
 pub const MAX_USABLE_EXPECTED_TRIALS: f64 = 64.0;
 
-impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
+impl<B: Brdf> QuadtreeSampler<B> {
     /// Builds the quadtree of f_r(wi, ·) for a local `wi` (normalised here; it must be finite,
     /// non-zero and above the horizon). Delta models are an error.
-    pub fn new(brdf: &'a B, wi: Vec3, config: BuildConfig) -> Result<Self, BuildError> {
+    pub fn new(brdf: B, wi: Vec3, config: BuildConfig) -> Result<Self, BuildError> {
         let wi = unit_direction_above(wi)?;
-        let tree = PackedTree::new(&Quadtree::from_unit(brdf, wi, config)?);
+        let tree = PackedTree::new(&Quadtree::from_unit(&brdf, wi, config)?);
         let v = tree.volume();
         let j = f64::from(config.map.square_area_per_projected_solid_angle());
         Ok(Self {
@@ -221,10 +246,17 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
         r
     }
 
-    /// Draws one direction: select a region, then rejection-sample it. f_r is evaluated once
-    /// per trial and never again for the accepted sample.
+    /// Draws one direction: select a region with a 53-bit uniform from `rng`, then
+    /// rejection-sample it. f_r is evaluated once per trial and never again for the accepted
+    /// sample.
     pub fn sample<R: Rng + ?Sized>(&self, rng: &mut R) -> Option<Sample> {
-        let leaf = self.tree.select(uniform_f64(rng));
+        self.sample_from(uniform_f64(rng), rng)
+    }
+
+    /// [`QuadtreeSampler::sample`] with the descent driven by the caller's `u` ∈ [0, 1)
+    /// (`select_region(u)`, then `sample_leaf` drawing the rejection trials from `rng`).
+    pub fn sample_from<R: Rng + ?Sized>(&self, u: f64, rng: &mut R) -> Option<Sample> {
+        let leaf = self.select_region(u);
         let (_, wo, f, trials) = self.rejection(&leaf, rng)?;
         if !above_horizon(wo) {
             return None;
@@ -261,9 +293,13 @@ impl<'a, B: Brdf + ?Sized> QuadtreeSampler<'a, B> {
     }
 }
 
-impl<B: Brdf + ?Sized> DirectionSampler for QuadtreeSampler<'_, B> {
+impl<B: Brdf> DirectionSampler for QuadtreeSampler<B> {
     fn name(&self) -> &'static str {
         "rejection"
+    }
+
+    fn sample_with(&self, _uc: f32, u: Vec2, rng: &mut dyn Rng) -> Option<Sample> {
+        self.sample_from(descent_uniform(u), rng)
     }
 
     fn sample(&self, rng: &mut dyn Rng) -> Option<Sample> {
@@ -289,15 +325,15 @@ pub enum Baseline {
 
 /// A baseline sampler for one incident direction.
 #[derive(Clone, Copy, Debug)]
-pub struct BaselineSampler<'a, B: Brdf + ?Sized> {
-    brdf: &'a B,
+pub struct BaselineSampler<B: Brdf = Arc<dyn Brdf>> {
+    brdf: B,
     wi: Vec3,
     kind: Baseline,
 }
 
-impl<'a, B: Brdf + ?Sized> BaselineSampler<'a, B> {
+impl<B: Brdf> BaselineSampler<B> {
     /// A baseline for local `wi` (normalised; it must be above the horizon).
-    pub fn new(brdf: &'a B, wi: Vec3, kind: Baseline) -> Result<Self, BuildError> {
+    pub fn new(brdf: B, wi: Vec3, kind: Baseline) -> Result<Self, BuildError> {
         Ok(Self {
             brdf,
             wi: unit_direction_above(wi)?,
@@ -305,10 +341,17 @@ impl<'a, B: Brdf + ?Sized> BaselineSampler<'a, B> {
         })
     }
 
-    /// Draws one direction with generic RNG.
+    /// Draws one direction with `uc`, `u.x`, `u.y` taken from `rng` (in that order).
     pub fn sample<R: Rng + ?Sized>(&self, rng: &mut R) -> Option<Sample> {
         let uc = uniform_f32(rng);
         let u = Vec2::new(uniform_f32(rng), uniform_f32(rng));
+        self.sample_from(uc, u)
+    }
+
+    /// Draws one direction from explicit uniforms: `uc` chooses the model's lobe (analytic
+    /// only), `u` places the direction. Draws no other numbers.
+    #[must_use]
+    pub fn sample_from(&self, uc: f32, u: Vec2) -> Option<Sample> {
         match self.kind {
             Baseline::Analytic => self.brdf.sample_continuous(self.wi, uc, u),
             Baseline::Uniform | Baseline::Cosine => {
@@ -335,7 +378,7 @@ impl<'a, B: Brdf + ?Sized> BaselineSampler<'a, B> {
     }
 }
 
-impl<B: Brdf + ?Sized> DirectionSampler for BaselineSampler<'_, B> {
+impl<B: Brdf> DirectionSampler for BaselineSampler<B> {
     fn name(&self) -> &'static str {
         match self.kind {
             Baseline::Uniform => "uniform",
@@ -344,8 +387,8 @@ impl<B: Brdf + ?Sized> DirectionSampler for BaselineSampler<'_, B> {
         }
     }
 
-    fn sample(&self, rng: &mut dyn Rng) -> Option<Sample> {
-        BaselineSampler::sample(self, rng)
+    fn sample_with(&self, uc: f32, u: Vec2, _rng: &mut dyn Rng) -> Option<Sample> {
+        self.sample_from(uc, u)
     }
 
     fn pdf(&self, wo: Vec3) -> f32 {

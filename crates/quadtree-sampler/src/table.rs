@@ -11,6 +11,7 @@
 
 use crate::error::BuildError;
 use crate::sampler::{DirectionSampler, Sample, uniform_f64};
+use alloc::sync::Arc;
 use alloc::vec::Vec;
 use brdf_core::geometry::unit_direction_above;
 use brdf_core::{Brdf, BrdfSample, DiskMap};
@@ -23,8 +24,8 @@ pub const DEFAULT_TABLE_RES: usize = 256;
 /// A piecewise-constant distribution over `res × res` cells of the concentric square for one
 /// incident direction.
 #[derive(Clone, Debug)]
-pub struct TableSampler<'a, B: Brdf + ?Sized> {
-    brdf: &'a B,
+pub struct TableSampler<B: Brdf = Arc<dyn Brdf>> {
+    brdf: B,
     wi: Vec3,
     res: usize,
     /// Cell values (mean luminance of f_r, floored), row-major, row = v.
@@ -37,9 +38,9 @@ pub struct TableSampler<'a, B: Brdf + ?Sized> {
     scale: f64,
 }
 
-impl<'a, B: Brdf + ?Sized> TableSampler<'a, B> {
+impl<B: Brdf> TableSampler<B> {
     /// Tabulates f_r(wi, ·) on `res × res` cells (`res` in [1, 4096]; 4·res² evaluations).
-    pub fn new(brdf: &'a B, wi: Vec3, res: usize) -> Result<Self, BuildError> {
+    pub fn new(brdf: B, wi: Vec3, res: usize) -> Result<Self, BuildError> {
         let wi = unit_direction_above(wi)?;
         if brdf.is_delta() {
             return Err(BuildError::DeltaModel { model: brdf.name() });
@@ -123,6 +124,17 @@ impl<'a, B: Brdf + ?Sized> TableSampler<'a, B> {
     /// point inside the cell (both by continuous inversion of the same two numbers).
     pub fn sample<R: Rng + ?Sized>(&self, rng: &mut R) -> Option<Sample> {
         let (u, v) = (uniform_f64(rng), uniform_f64(rng));
+        self.sample_from(u, v)
+    }
+
+    /// [`TableSampler::sample`] from explicit uniforms `u` (the column) and `v` (the row), in
+    /// [0, 1). Draws no other numbers.
+    #[must_use]
+    pub fn sample_from(&self, u: f64, v: f64) -> Option<Sample> {
+        let (u, v) = (
+            u.clamp(0.0, 1.0 - f64::EPSILON),
+            v.clamp(0.0, 1.0 - f64::EPSILON),
+        );
         let res = self.res;
         // Row: the last k with marginal[k] <= v.
         let row = (self.marginal.partition_point(|&c| c <= v) - 1).min(res - 1);
@@ -160,9 +172,13 @@ impl<'a, B: Brdf + ?Sized> TableSampler<'a, B> {
     }
 }
 
-impl<B: Brdf + ?Sized> DirectionSampler for TableSampler<'_, B> {
+impl<B: Brdf> DirectionSampler for TableSampler<B> {
     fn name(&self) -> &'static str {
         "table"
+    }
+
+    fn sample_with(&self, _uc: f32, u: Vec2, _rng: &mut dyn Rng) -> Option<Sample> {
+        self.sample_from(f64::from(u.x), f64::from(u.y))
     }
 
     fn sample(&self, rng: &mut dyn Rng) -> Option<Sample> {

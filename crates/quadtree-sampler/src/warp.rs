@@ -14,6 +14,7 @@ use crate::config::BuildConfig;
 use crate::error::BuildError;
 use crate::sampler::{DirectionSampler, Sample, uniform_f64};
 use crate::tree::{Quadtree, TreeStats, albedo_of_volume};
+use alloc::sync::Arc;
 use alloc::vec::Vec;
 use brdf_core::geometry::{above_horizon, unit_direction_above};
 use brdf_core::{Brdf, DiskMap};
@@ -25,8 +26,8 @@ pub const DEFAULT_MIX: f64 = 0.05;
 
 /// The warp sampler of one incident direction (see the module doc).
 #[derive(Debug)]
-pub struct WarpSampler<'a, B: Brdf + ?Sized> {
-    brdf: &'a B,
+pub struct WarpSampler<B: Brdf = Arc<dyn Brdf>> {
+    brdf: B,
     wi: Vec3,
     tree: Quadtree,
     /// q per node (sums over children to the parent; 1 at the root).
@@ -35,10 +36,10 @@ pub struct WarpSampler<'a, B: Brdf + ?Sized> {
     volume: f64,
 }
 
-impl<'a, B: Brdf + ?Sized> WarpSampler<'a, B> {
+impl<B: Brdf> WarpSampler<B> {
     /// Builds the tree of f_r(wi, ·) over the concentric map (whatever `config.map` says) and
     /// the warp's node probabilities, with defensive weight `mix` ∈ (0, 1].
-    pub fn new(brdf: &'a B, wi: Vec3, config: BuildConfig, mix: f64) -> Result<Self, BuildError> {
+    pub fn new(brdf: B, wi: Vec3, config: BuildConfig, mix: f64) -> Result<Self, BuildError> {
         if !(mix > 0.0 && mix <= 1.0) {
             return Err(BuildError::OutOfRange {
                 option: "warp mix",
@@ -51,7 +52,7 @@ impl<'a, B: Brdf + ?Sized> WarpSampler<'a, B> {
             map: DiskMap::Concentric,
             ..config
         };
-        let tree = Quadtree::from_unit(brdf, wi, config)?;
+        let tree = Quadtree::from_unit(&brdf, wi, config)?;
         let volume = tree.volume();
         // A tree with no volume (f ≡ 0) is warped by the uniform component alone.
         let mix = if volume > 0.0 { mix } else { 1.0 };
@@ -219,9 +220,13 @@ fn split(u: &mut f64, a: f64, b: f64) -> usize {
     }
 }
 
-impl<B: Brdf + ?Sized> DirectionSampler for WarpSampler<'_, B> {
+impl<B: Brdf> DirectionSampler for WarpSampler<B> {
     fn name(&self) -> &'static str {
         "warp"
+    }
+
+    fn sample_with(&self, _uc: f32, u: Vec2, _rng: &mut dyn Rng) -> Option<Sample> {
+        self.sample_warp(u)
     }
 
     fn sample(&self, rng: &mut dyn Rng) -> Option<Sample> {

@@ -329,9 +329,7 @@ fn transport_roles() {
         fn name(&self) -> &'static str {
             "radiance"
         }
-        fn sample(&self, rng: &mut dyn Rng) -> Option<Sample> {
-            let uc = uniform_f32(rng);
-            let u = Vec2::new(uniform_f32(rng), uniform_f32(rng));
+        fn sample_with(&self, uc: f32, u: Vec2, rng: &mut dyn Rng) -> Option<Sample> {
             self.0
                 .sample_as(Role::Radiance, self.1, uc, u, rng)
                 .unwrap()

@@ -2,7 +2,7 @@
 //! baselines, and it rejects the negative controls — a harness that cannot fail is worthless.
 
 use brdf_core::{Brdf, DiskMap, registry};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use quadtree_sampler::validate::{CellGrid, Report, Validation, Verdict, sidak};
 use quadtree_sampler::{
     Baseline, BaselineSampler, BuildConfig, DEFAULT_TABLE_RES, DirectionSampler, QuadtreeSampler,
@@ -122,20 +122,21 @@ fn an_underestimated_bound_is_rejected() {
 
 /// A sampler whose density is 5 % low in one quadrant (x > 0, y > 0) while it reports the
 /// quadtree's pdf: samples landing there are re-drawn with probability 5 %.
-struct Skewed<'a>(QuadtreeSampler<'a, dyn Brdf>);
+struct Skewed<'a>(QuadtreeSampler<&'a dyn Brdf>);
 
 impl DirectionSampler for Skewed<'_> {
     fn name(&self) -> &'static str {
         "skewed"
     }
 
-    fn sample(&self, rng: &mut dyn Rng) -> Option<Sample> {
+    fn sample_with(&self, uc: f32, u: Vec2, rng: &mut dyn Rng) -> Option<Sample> {
+        let mut s = self.0.sample_with(uc, u, rng)?;
         loop {
-            let s = self.0.sample(rng)?;
             let u = (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
             if !(s.wo.x > 0.0 && s.wo.y > 0.0 && u < 0.05) {
                 return Some(s);
             }
+            s = self.0.sample(rng)?;
         }
     }
 
@@ -164,14 +165,14 @@ fn a_five_percent_error_in_one_quadrant_is_rejected() {
 }
 
 /// A sampler that never draws anything, whatever pdf it claims.
-struct Nothing<'a>(QuadtreeSampler<'a, dyn Brdf>);
+struct Nothing<'a>(QuadtreeSampler<&'a dyn Brdf>);
 
 impl DirectionSampler for Nothing<'_> {
     fn name(&self) -> &'static str {
         "nothing"
     }
 
-    fn sample(&self, _rng: &mut dyn Rng) -> Option<Sample> {
+    fn sample_with(&self, _uc: f32, _u: Vec2, _rng: &mut dyn Rng) -> Option<Sample> {
         None
     }
 

@@ -13,8 +13,8 @@ use brdf_core::{Brdf, DiskMap};
 use glam::{DVec2, Vec2, Vec3};
 use quadtree_sampler::validate::{CellGrid, Validation};
 use quadtree_sampler::{
-    BakeConfig, BakedSampler, Baseline, BaselineSampler, BuildConfig, DEFAULT_BAKE_NODE_BUDGET,
-    DEFAULT_MIX, DirectionSampler, Quadtree, QuadtreeSampler, TreeStats, WarpSampler,
+    AnySampler, BakeConfig, BakedSampler, BuildConfig, DEFAULT_BAKE_NODE_BUDGET, DirectionSampler,
+    Quadtree, QuadtreeSampler, SamplerMode, TreeStats,
 };
 use rand_core::SeedableRng;
 use std::sync::Arc;
@@ -365,40 +365,27 @@ pub fn process(req: &Request, live: &dyn Fn() -> bool, send: &dyn Fn(Update)) {
     if !live() {
         return;
     }
-    let other: Option<Box<dyn DirectionSampler + '_>> = match req.sampler {
-        SamplerKind::Rejection => None,
-        SamplerKind::Baked => match baked.as_ref().map(|b| b.at(req.wi)) {
-            Some(Ok(at)) => Some(Box::new(at)),
-            Some(Err(e)) => {
-                send(Update::Failed(g, e.to_string()));
-                return;
-            }
-            None => return,
-        },
-        SamplerKind::Warp => match WarpSampler::new(brdf, req.wi, req.config, DEFAULT_MIX) {
-            Ok(s) => Some(Box::new(s)),
-            Err(e) => {
-                send(Update::Failed(g, e.to_string()));
-                return;
-            }
-        },
-        SamplerKind::Cosine | SamplerKind::Uniform | SamplerKind::Analytic => {
-            let kind = match req.sampler {
-                SamplerKind::Cosine => Baseline::Cosine,
-                SamplerKind::Uniform => Baseline::Uniform,
-                _ => Baseline::Analytic,
-            };
-            match BaselineSampler::new(brdf, req.wi, kind) {
-                Ok(s) => Some(Box::new(s)),
-                Err(e) => {
-                    send(Update::Failed(g, e.to_string()));
-                    return;
-                }
-            }
+    let mode = match req.sampler {
+        SamplerKind::Rejection | SamplerKind::Baked => None,
+        SamplerKind::Warp => Some(SamplerMode::Warp),
+        SamplerKind::Cosine => Some(SamplerMode::Cosine),
+        SamplerKind::Uniform => Some(SamplerMode::Uniform),
+        SamplerKind::Analytic => Some(SamplerMode::Analytic),
+    };
+    let other = match (baked, mode) {
+        (Some(b), _) => AnySampler::baked(b, req.wi).map(Some),
+        (None, Some(mode)) => AnySampler::new(brdf, req.wi, mode, req.config).map(Some),
+        (None, None) => Ok(None),
+    };
+    let other = match other {
+        Ok(o) => o,
+        Err(e) => {
+            send(Update::Failed(g, e.to_string()));
+            return;
         }
     };
     let sampler: &dyn DirectionSampler = match &other {
-        Some(b) => &**b,
+        Some(b) => b,
         None => &tree_sampler,
     };
     let map = req.config.map;

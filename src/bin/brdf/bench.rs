@@ -6,8 +6,8 @@
 use crate::CliError;
 use brdf_sampling::bench::{self, Environment, Estimate};
 use brdf_sampling::quadtree_sampler::{
-    BakeConfig, BakedMode, BakedSampler, Baseline, BaselineSampler, BuildConfig, DEFAULT_MIX,
-    DEFAULT_TABLE_RES, DirectionSampler, QuadtreeSampler, TableSampler, WarpSampler, uniform_f32,
+    AnySampler, BakeConfig, BakedMode, BakedSampler, BuildConfig, DirectionSampler, SamplerMode,
+    uniform_f32,
 };
 use rand_core::SeedableRng;
 use serde_json::{Value, json};
@@ -132,7 +132,12 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
     // m = 0.1), timed here the same way as every sampler below.
     let beckmann_model = bench::model("cook-torrance", &["m=0.1"])?;
     let beckmann_ns = bench::estimate(
-        &BaselineSampler::new(&*beckmann_model, wi, Baseline::Analytic)?,
+        &AnySampler::new(
+            &*beckmann_model,
+            wi,
+            SamplerMode::Analytic,
+            BuildConfig::default(),
+        )?,
         &envs,
         samples,
         args.seed,
@@ -150,11 +155,11 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
         let b = &*brdf;
         let config = BuildConfig::default();
         let (build_serial, q, build_parallel) = fastest_pair(
-            || serial.install(|| QuadtreeSampler::new(b, wi, config)),
-            || QuadtreeSampler::new(b, wi, config),
+            || serial.install(|| AnySampler::new(b, wi, SamplerMode::Rejection, config)),
+            || AnySampler::new(b, wi, SamplerMode::Rejection, config),
         );
         let q = q?;
-        let stats = q.stats();
+        let stats = q.tree_stats().expect("a tree");
         let mut measured = Vec::new();
         let mut measure = |name: &'static str, build: f64, s: &dyn DirectionSampler| {
             measured.push(Measured {
@@ -172,22 +177,20 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
                 ..BuildConfig::default()
             };
             let t0 = Instant::now();
-            let t = serial.install(|| QuadtreeSampler::new(b, wi, config))?;
+            let t = serial.install(|| AnySampler::new(b, wi, SamplerMode::Rejection, config))?;
             let build = t0.elapsed().as_secs_f64();
             measure("quadtree-target-1.25", build, &t);
-            Some(t.stats())
+            t.tree_stats()
         };
         let t0 = Instant::now();
-        let w = serial.install(|| WarpSampler::new(b, wi, BuildConfig::default(), DEFAULT_MIX))?;
+        let w =
+            serial.install(|| AnySampler::new(b, wi, SamplerMode::Warp, BuildConfig::default()))?;
         measure("warp", t0.elapsed().as_secs_f64(), &w);
-        for (label, kind) in [
-            ("cosine", Baseline::Cosine),
-            ("analytic", Baseline::Analytic),
-        ] {
-            measure(label, 0.0, &BaselineSampler::new(b, wi, kind)?);
+        for mode in [SamplerMode::Cosine, SamplerMode::Analytic] {
+            measure(mode.name(), 0.0, &AnySampler::new(b, wi, mode, config)?);
         }
         let t0 = Instant::now();
-        let t = TableSampler::new(b, wi, DEFAULT_TABLE_RES)?;
+        let t = AnySampler::new(b, wi, SamplerMode::Table, config)?;
         measure("table", t0.elapsed().as_secs_f64(), &t);
         // The baked sampler (SPEC §7): baked once per material, so its bake is not amortised
         // over one wi's samples here (its own columns give it); sampled at the benches' wi,

@@ -4,8 +4,7 @@ use crate::CliError;
 use brdf_sampling::geometry::{unit_direction, unit_direction_above};
 use brdf_sampling::glam::Vec3;
 use brdf_sampling::quadtree_sampler::{
-    BakedMode, BakedSampler, Baseline, BaselineSampler, BuildConfig, DEFAULT_MIX,
-    DEFAULT_TABLE_RES, DirectionSampler, QuadtreeSampler, TableSampler, TreeStats, WarpSampler,
+    AnySampler, BakedMode, BakedSampler, BuildConfig, DirectionSampler, SamplerMode,
 };
 use brdf_sampling::{Brdf, DiskMap};
 use rand_core::SeedableRng;
@@ -117,45 +116,17 @@ pub(crate) fn load_baked(
     Ok(Some(brdf))
 }
 
-/// A loaded bake at one incident direction.
-struct BakedAtWi(Arc<BakedSampler>, Vec3);
-
-impl DirectionSampler for BakedAtWi {
-    fn name(&self) -> &'static str {
-        match self.0.mode() {
-            BakedMode::Rejection => "baked rejection",
-            BakedMode::Warp => "baked warp",
-        }
-    }
-    fn sample(
-        &self,
-        rng: &mut dyn rand_core::Rng,
-    ) -> Option<brdf_sampling::quadtree_sampler::Sample> {
-        self.0.at(self.1).ok()?.sample(rng)
-    }
-    fn pdf(&self, wo: Vec3) -> f32 {
-        self.0.at(self.1).map_or(0.0, |a| a.pdf(wo))
-    }
-}
-
 /// Parses `x,y,z` into a direction (not yet normalised).
 pub(crate) fn parse_vec3(text: &str, what: &str) -> Result<Vec3, CliError> {
     brdf_sampling::text::parse_vec3(text).map_err(|e| CliError::Usage(format!("{what} {e}")))
 }
 
-/// Reads the rejection sampler's bound-violation count after sampling.
-pub(crate) type ViolationCounter<'a> = Box<dyn Fn() -> u64 + 'a>;
-
-/// A built sampler and, for the quadtree, its statistics.
+/// A built sampler (the library's factory, [`AnySampler`]) and its build time.
 pub(crate) struct Built<'a> {
-    /// The sampler.
-    pub(crate) sampler: Box<dyn DirectionSampler + 'a>,
-    /// Tree statistics, albedo, and (rejection only) the bound-violation counter.
-    pub(crate) tree: Option<(TreeStats, f64, Option<ViolationCounter<'a>>)>,
-    /// Seconds spent building (0 for the baselines).
+    /// The sampler, with its statistics.
+    pub(crate) sampler: AnySampler<&'a dyn Brdf>,
+    /// Seconds spent building (0 for the baselines and a loaded bake).
     pub(crate) build_seconds: f64,
-    /// The bake, for `--baked`.
-    pub(crate) baked: Option<Arc<BakedSampler>>,
 }
 
 /// Parses and checks `--wi`.
@@ -211,90 +182,37 @@ pub(crate) fn build<'a>(
     }
     let t0 = Instant::now();
     if let Some(baked) = &args.loaded {
-        let b = baked.clone();
         return Ok(Built {
-            sampler: Box::new(BakedAtWi(baked.clone(), wi)),
-            tree: None,
+            sampler: AnySampler::baked(baked.clone(), wi)?,
             build_seconds: 0.0,
-            baked: Some(b),
         });
     }
-    let baseline = |kind| -> Result<Built<'a>, CliError> {
-        Ok(Built {
-            sampler: Box::new(BaselineSampler::new(brdf, wi, kind)?),
-            tree: None,
-            build_seconds: 0.0,
-            baked: None,
-        })
+    let mode = match args.mode {
+        Mode::Uniform => SamplerMode::Uniform,
+        Mode::Cosine => SamplerMode::Cosine,
+        Mode::Analytic => SamplerMode::Analytic,
+        Mode::Table => SamplerMode::Table,
+        Mode::Warp => SamplerMode::Warp,
+        Mode::Rejection => SamplerMode::Rejection,
     };
-    match args.mode {
-        Mode::Uniform => baseline(Baseline::Uniform),
-        Mode::Cosine => baseline(Baseline::Cosine),
-        Mode::Analytic => baseline(Baseline::Analytic),
-        Mode::Table => {
-            let t = TableSampler::new(brdf, wi, DEFAULT_TABLE_RES)?;
-            Ok(Built {
-                sampler: Box::new(t),
-                tree: None,
-                build_seconds: t0.elapsed().as_secs_f64(),
-                baked: None,
-            })
-        }
-        Mode::Warp => {
-            let config = BuildConfig {
-                target_trials: args.target_trials,
-                ..BuildConfig::default()
-            };
-            let w = WarpSampler::new(brdf, wi, config, DEFAULT_MIX)?;
-            let build_seconds = t0.elapsed().as_secs_f64();
-            let (stats, albedo) = (w.stats(), w.albedo());
-            Ok(Built {
-                sampler: Box::new(w),
-                tree: Some((stats, albedo, None)),
-                build_seconds,
-                baked: None,
-            })
-        }
-        Mode::Rejection => {
-            let map = match args.map {
-                MapArg::Orthographic => DiskMap::Orthographic,
-                MapArg::Concentric => DiskMap::Concentric,
-            };
-            let config = BuildConfig {
-                map,
-                target_trials: args.target_trials,
-                ..BuildConfig::default()
-            };
-            let q = std::sync::Arc::new(QuadtreeSampler::new(brdf, wi, config)?);
-            let build_seconds = t0.elapsed().as_secs_f64();
-            let (stats, albedo) = (q.stats(), q.albedo());
-            let q2 = q.clone();
-            Ok(Built {
-                sampler: Box::new(ArcSampler(q)),
-                tree: Some((stats, albedo, Some(Box::new(move || q2.bound_violations())))),
-                build_seconds,
-                baked: None,
-            })
-        }
-    }
-}
-
-/// Shares one quadtree sampler between the sampling loop and the statistics.
-struct ArcSampler<'a>(std::sync::Arc<QuadtreeSampler<'a, dyn Brdf + 'a>>);
-
-impl DirectionSampler for ArcSampler<'_> {
-    fn name(&self) -> &'static str {
-        "rejection"
-    }
-    fn sample(
-        &self,
-        rng: &mut dyn rand_core::Rng,
-    ) -> Option<brdf_sampling::quadtree_sampler::Sample> {
-        self.0.sample(rng)
-    }
-    fn pdf(&self, wo: Vec3) -> f32 {
-        self.0.pdf(wo)
-    }
+    let config = BuildConfig {
+        map: match args.map {
+            MapArg::Orthographic => DiskMap::Orthographic,
+            MapArg::Concentric => DiskMap::Concentric,
+        },
+        target_trials: args.target_trials,
+        ..BuildConfig::default()
+    };
+    let sampler = AnySampler::new(brdf, wi, mode, config)?;
+    let build_seconds = if mode.builds_tree() || mode == SamplerMode::Table {
+        t0.elapsed().as_secs_f64()
+    } else {
+        0.0
+    };
+    Ok(Built {
+        sampler,
+        build_seconds,
+    })
 }
 
 pub(crate) fn run_sample(
@@ -354,7 +272,12 @@ pub(crate) fn run_sample(
         "mean_weight": weight_sum / n,
     });
     let obj = summary.as_object_mut().expect("an object");
-    match &built.tree {
+    let tree = built
+        .sampler
+        .tree_stats()
+        .zip(built.sampler.albedo())
+        .map(|(stats, albedo)| (stats, albedo, built.sampler.bound_violations()));
+    match &tree {
         Some((stats, albedo, violations)) => {
             obj.insert("albedo".into(), json!(albedo));
             obj.insert("albedo_method".into(), json!("quadtree volume"));
@@ -365,7 +288,7 @@ pub(crate) fn run_sample(
             match violations {
                 Some(v) => {
                     obj.insert("expected_trials".into(), json!(stats.expected_trials));
-                    obj.insert("bound_violations".into(), json!(v()));
+                    obj.insert("bound_violations".into(), json!(v));
                 }
                 None => {
                     obj.insert("expected_trials".into(), Value::Null);
@@ -373,8 +296,8 @@ pub(crate) fn run_sample(
                 }
             }
         }
-        None if built.baked.is_some() => {
-            let b = built.baked.as_ref().expect("a bake");
+        None if built.sampler.bake().is_some() => {
+            let b = built.sampler.bake().expect("a bake");
             obj.insert("albedo".into(), json!(weight_sum / n));
             obj.insert(
                 "albedo_method".into(),

@@ -274,13 +274,14 @@ pub(crate) fn run(
     let mut builds = Vec::with_capacity(wis.len());
     for (k, &wi) in wis.iter().enumerate() {
         let built = sample::build(brdf, wi, &args.options)?;
+        let stats = built.sampler.tree_stats();
         builds.push(json!({
             "wi": [wi.x, wi.y, wi.z],
             "build_seconds": built.build_seconds,
-            "nodes": built.tree.as_ref().map(|t| t.0.nodes),
-            "leaves": built.tree.as_ref().map(|t| t.0.leaves),
-            "max_depth": built.tree.as_ref().map(|t| t.0.max_depth),
-            "expected_trials": built.tree.as_ref().and_then(|t| t.2.as_ref().map(|_| t.0.expected_trials)),
+            "nodes": stats.as_ref().map(|t| t.nodes),
+            "leaves": stats.as_ref().map(|t| t.leaves),
+            "max_depth": stats.as_ref().map(|t| t.max_depth),
+            "expected_trials": stats.as_ref().filter(|_| built.sampler.bound_violations().is_some()).map(|t| t.expected_trials),
         }));
         for (g, &grid) in grids.iter().enumerate() {
             let t0 = Instant::now();
@@ -288,7 +289,7 @@ pub(crate) fn run(
             let index = (k * grids.len() + g) as u64;
             let test_seed = splitmix64(args.seed ^ splitmix64(index));
             let report = v.test_chunked(
-                &*built.sampler,
+                &built.sampler,
                 args.samples,
                 |chunk| rand_pcg::Pcg64::seed_from_u64(splitmix64(test_seed ^ splitmix64(chunk))),
                 alpha,
@@ -320,7 +321,7 @@ pub(crate) fn run(
         for (k, &wi) in wis.iter().enumerate() {
             let built = sample::build(brdf, wi, &args.options)?;
             let seed = splitmix64(args.seed ^ splitmix64(0xba4e_0000 + k as u64));
-            let (mean, se) = mean_weight(&*built.sampler, args.samples, seed);
+            let (mean, se) = mean_weight(&built.sampler, args.samples, seed);
             let albedo = f64::from(brdf_sampling::geometry::luminance(
                 brdf_sampling::quadrature::directional_albedo(brdf, wi, 96, 6).as_vec3(),
             ));

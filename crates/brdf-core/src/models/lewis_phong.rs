@@ -1,10 +1,9 @@
 use super::{MirrorLobe, cosine_pdf64, diffuse_probability, pdf_pair, sample_mixture};
 use crate::Symmetry;
 use crate::brdf::{Brdf, BrdfSample};
-use crate::error::ParamError;
+use crate::error::{Constraint, ParamError};
 use crate::geometry::upper_pair;
 use crate::param::{ParamSet, ParamSpec, ParamValue};
-use alloc::format;
 use core::f64::consts::FRAC_1_PI;
 use glam::{Vec2, Vec3};
 
@@ -78,10 +77,9 @@ pub(crate) fn check_energy(model: &'static str, kd: Vec3, ks: Vec3) -> Result<()
     if s.max_element() > 1.0 + 1e-6 {
         return Err(ParamError::Constraint {
             model,
-            message: format!(
-                "kd + ks must be <= 1 in every channel (got {}, {}, {})",
-                s.x, s.y, s.z
-            ),
+            constraint: Constraint::EnergyConservation {
+                kd_plus_ks: s.to_array(),
+            },
         });
     }
     Ok(())
