@@ -512,6 +512,11 @@ fn bench_reports_ratios_from_unbiased_estimates() {
         "",
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     let sets = v["sets"].as_array().unwrap();
     assert_eq!(sets.len(), 1);
@@ -585,6 +590,12 @@ fn bake_then_sample_pdf_and_test_baked() {
         "",
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // Progress is drawn only on a terminal: through a pipe, stderr stays empty.
+    assert!(
+        o.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["trees"].as_u64(), Some(12));
     for key in ["nodes", "bytes", "build_seconds"] {

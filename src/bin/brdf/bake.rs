@@ -8,7 +8,7 @@ use brdf_sampling::quadtree_sampler::{
 };
 use brdf_sampling::{Brdf, DiskMap};
 use serde_json::json;
-use std::io::{IsTerminal, Write};
+use std::io::Write;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -56,19 +56,13 @@ pub(crate) fn run(
         );
     }
     // Progress on stderr only when it is a terminal, so that scripts see the same output.
-    let tty = std::io::stderr().is_terminal();
-    let progress = move |done: usize, total: usize| {
-        if tty {
-            eprint!("\rbaking: {done}/{total} trees");
-            if done == total {
-                eprintln!();
-            }
-        }
-    };
+    let bar = crate::progress::Progress::new("baking trees", 0);
+    let progress = |done: usize, total: usize| bar.set(done as u64, total as u64);
     let t0 = Instant::now();
     let baked = BakedSampler::new_with_progress(brdf.clone(), config, &progress)
         .map_err(|e| CliError::Usage(format!("bake: {e}")))?;
     let build_seconds = t0.elapsed().as_secs_f64();
+    drop(bar);
     baked
         .save(&args.out)
         .map_err(|e| CliError::Usage(format!("--out {e}")))?;

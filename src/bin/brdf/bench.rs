@@ -147,10 +147,13 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
     let mut rows = Vec::new();
     let mut table = String::new();
     let mut baked_table = String::new();
+    let chosen = bench::SETS.iter().filter(|s| selected(s.0)).count();
+    let bar = crate::progress::Progress::new("benchmarking", chosen as u64);
     for &(label, name, params) in bench::SETS {
         if !selected(label) {
             continue;
         }
+        bar.note(label);
         let brdf = bench::model(name, params)?;
         let b = &*brdf;
         let config = BuildConfig::default();
@@ -280,6 +283,7 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
         let speedup = build_serial / build_parallel;
         let tgt = get("quadtree-target-1.25");
         let tgt_ns = tgt.map(ns);
+        bar.step();
         rows.push(json!({
             "set": label,
             "model": name,
@@ -337,6 +341,7 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
             opt(tgt_ns.map(|t| t / beckmann_ns), 2),
         );
     }
+    drop(bar);
     if args.json {
         let out = json!({
             "wi": [wi.x, wi.y, wi.z],

@@ -7,6 +7,7 @@ mod bench;
 mod eval;
 mod images;
 mod models;
+mod progress;
 mod sample;
 mod test;
 

@@ -272,7 +272,9 @@ pub(crate) fn run(
     let mode = format!("{:?}", args.options.mode).to_lowercase();
     let mut rows = Vec::with_capacity(tests);
     let mut builds = Vec::with_capacity(wis.len());
+    let bar = crate::progress::Progress::new("testing", tests as u64);
     for (k, &wi) in wis.iter().enumerate() {
+        bar.note(&format!("wi {}/{}", k + 1, wis.len()));
         let built = sample::build(brdf, wi, &args.options)?;
         let stats = built.sampler.tree_stats();
         builds.push(json!({
@@ -315,10 +317,12 @@ pub(crate) fn run(
                 seconds,
                 images,
             });
+            bar.step();
         }
     }
     if baked {
         for (k, &wi) in wis.iter().enumerate() {
+            bar.note(&format!("mean weight at wi {}/{}", k + 1, wis.len()));
             let built = sample::build(brdf, wi, &args.options)?;
             let seed = splitmix64(args.seed ^ splitmix64(0xba4e_0000 + k as u64));
             let (mean, se) = mean_weight(&built.sampler, args.samples, seed);
@@ -337,6 +341,7 @@ pub(crate) fn run(
                 f64::INFINITY
             };
             let p = brdf_sampling::special::erfc(z / std::f64::consts::SQRT_2);
+            bar.step();
             weight_tests.push(WeightTest {
                 wi,
                 mean,
@@ -347,6 +352,7 @@ pub(crate) fn run(
             });
         }
     }
+    drop(bar);
     let verdict = overall(
         rows.iter()
             .map(Row::verdict)
