@@ -71,6 +71,20 @@ pub enum ParamError {
         /// The range, written as in MODELS.md (for example `[0, 1]` or `(0, 1]`).
         range: String,
     },
+    /// A parameter the model cannot do without was not given (a measured model's `file`).
+    Required {
+        /// The model.
+        model: &'static str,
+        /// The parameter.
+        name: &'static str,
+    },
+    /// The data file a parameter names cannot be used.
+    Data {
+        /// The parameter.
+        name: &'static str,
+        /// The file and what is wrong with it.
+        error: DataError,
+    },
     /// Values that are each in range break a constraint between parameters.
     Constraint {
         /// The model.
@@ -131,9 +145,101 @@ impl fmt::Display for ParamError {
                 f,
                 "parameter `{name}` = {value} is out of its range {range}"
             ),
+            Self::Required { model, name } => write!(
+                f,
+                "model `{model}` needs parameter `{name}` (for example --param {name}=PATH)"
+            ),
+            Self::Data { name, error } => write!(f, "parameter `{name}`: {error}"),
             Self::Constraint { model, constraint } => write!(f, "model `{model}`: {constraint}"),
         }
     }
 }
 
 impl core::error::Error for ParamError {}
+
+/// What is wrong with a measured BRDF's data file (SPEC §8).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DataFault {
+    /// No file at the path.
+    Missing,
+    /// The path is a directory.
+    Directory,
+    /// The file exists but may not be read.
+    PermissionDenied,
+    /// Reading failed for another reason.
+    Unreadable,
+    /// The file ends early: `bytes` of the `expected`.
+    Truncated {
+        /// The file's size.
+        bytes: u64,
+        /// The size the format fixes.
+        expected: u64,
+    },
+    /// The file is longer than the format allows (bytes after the last value).
+    WrongSize {
+        /// The file's size.
+        bytes: u64,
+        /// The size the format fixes.
+        expected: u64,
+    },
+    /// The header's dimensions are not (90, 90, 180).
+    Dimensions {
+        /// The three dimensions as stored.
+        found: [i32; 3],
+    },
+    /// A stored value is NaN or infinite.
+    NotFinite {
+        /// 0 red, 1 green, 2 blue.
+        channel: u8,
+        /// The bin within the channel.
+        bin: u32,
+    },
+    /// Built without `std`: there is no file system to read from.
+    NoFileSystem,
+}
+
+impl fmt::Display for DataFault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Missing => f.write_str("no such file"),
+            Self::Directory => f.write_str("is a directory, not a file"),
+            Self::PermissionDenied => f.write_str("permission denied"),
+            Self::Unreadable => f.write_str("cannot be read"),
+            Self::Truncated { bytes, expected } => write!(
+                f,
+                "truncated: {bytes} bytes, a MERL file has exactly {expected}"
+            ),
+            Self::WrongSize { bytes, expected } => write!(
+                f,
+                "wrong size: {bytes} bytes, a MERL file has exactly {expected}"
+            ),
+            Self::Dimensions { found: [a, b, c] } => write!(
+                f,
+                "wrong dimensions {a} x {b} x {c} in the header (a MERL file has 90 x 90 x 180)"
+            ),
+            Self::NotFinite { channel, bin } => write!(
+                f,
+                "value {bin} of the {} channel is NaN or infinite",
+                ["red", "green", "blue"][usize::from(*channel).min(2)]
+            ),
+            Self::NoFileSystem => f.write_str("cannot be read: built without std"),
+        }
+    }
+}
+
+/// A data file that cannot be used: which file, and why.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DataError {
+    /// The path as given.
+    pub path: String,
+    /// What is wrong.
+    pub fault: DataFault,
+}
+
+impl fmt::Display for DataError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.path, self.fault)
+    }
+}
+
+impl core::error::Error for DataError {}

@@ -45,7 +45,7 @@ pub mod special;
 pub mod warp;
 
 pub use brdf::{Brdf, BrdfSample, PeakHints, Symmetry};
-pub use error::{Constraint, DirectionError, ParamError};
+pub use error::{Constraint, DataError, DataFault, DirectionError, ParamError};
 pub use frame::Frame;
 pub use glam;
 pub use maps::DiskMap;

@@ -7,13 +7,17 @@ use alloc::string::{String, ToString};
 use alloc::vec::Vec;
 use glam::Vec3;
 
-/// Whether a parameter is one number or an RGB triple.
+/// What kind of value a parameter takes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ParamKind {
     /// One number.
     Scalar,
     /// An RGB triple; written as one value (all channels) or three, `kd=0.9,0.6,0.5`.
     Rgb,
+    /// A file path (a measured BRDF's data); its default is empty: no file.
+    Path,
+    /// One of a fixed set of names (the first is the default unless the spec says otherwise).
+    Choice(&'static [&'static str]),
 }
 
 /// One parameter of a model: its name, kind, default, range and meaning.
@@ -21,9 +25,10 @@ pub enum ParamKind {
 pub struct ParamSpec {
     /// The name used on the command line (`--param name=value`).
     pub name: &'static str,
-    /// Scalar or RGB.
+    /// Scalar, RGB, path or choice.
     pub kind: ParamKind,
-    /// The default value (for a scalar, all three components are equal).
+    /// The default value (for a scalar, all three components are equal; for a choice, the
+    /// default option's index in `default[0]`; unused for a path).
     pub default: [f32; 3],
     /// Lower end of the range.
     pub min: f32,
@@ -76,6 +81,45 @@ impl ParamSpec {
         }
     }
 
+    /// A file path parameter (default: empty, no file).
+    #[must_use]
+    pub const fn path(name: &'static str, doc: &'static str) -> Self {
+        Self {
+            name,
+            kind: ParamKind::Path,
+            default: [0.0; 3],
+            min: 0.0,
+            max: 0.0,
+            min_exclusive: false,
+            doc,
+        }
+    }
+
+    /// A choice among `options`, defaulting to `options[default]`.
+    #[must_use]
+    pub const fn choice(
+        name: &'static str,
+        options: &'static [&'static str],
+        default: usize,
+        doc: &'static str,
+    ) -> Self {
+        Self {
+            name,
+            kind: ParamKind::Choice(options),
+            default: [default as f32; 3],
+            min: 0.0,
+            max: 0.0,
+            min_exclusive: false,
+            doc,
+        }
+    }
+
+    /// Whether the value is a number or an RGB triple (the kinds with a range).
+    #[must_use]
+    pub fn is_numeric(&self) -> bool {
+        matches!(self.kind, ParamKind::Scalar | ParamKind::Rgb)
+    }
+
     /// The same parameter with its lower end excluded: (min, max].
     #[must_use]
     pub const fn min_exclusive(mut self) -> Self {
@@ -83,9 +127,15 @@ impl ParamSpec {
         self
     }
 
-    /// The range as written in MODELS.md, e.g. `[0, 1]` or `(0, 1]`.
+    /// The range as written in MODELS.md, e.g. `[0, 1]` or `(0, 1]`; for a choice its options
+    /// (`nearest|linear`), for a path `a file path`.
     #[must_use]
     pub fn range_text(&self) -> String {
+        match self.kind {
+            ParamKind::Path => return "a file path".to_string(),
+            ParamKind::Choice(options) => return options.join("|"),
+            ParamKind::Scalar | ParamKind::Rgb => {}
+        }
         format!(
             "{}{}, {}]",
             if self.min_exclusive { "(" } else { "[" },
@@ -100,6 +150,10 @@ impl ParamSpec {
         match self.kind {
             ParamKind::Scalar => ParamValue::Scalar(self.default[0]),
             ParamKind::Rgb => ParamValue::Rgb(Vec3::from_array(self.default)),
+            ParamKind::Path => ParamValue::Path(String::new()),
+            ParamKind::Choice(options) => {
+                ParamValue::Choice(options[(self.default[0] as usize).min(options.len() - 1)])
+            }
         }
     }
 
@@ -138,6 +192,32 @@ impl ParamSpec {
     /// Checks a value of either kind against this spec (kind and range).
     pub fn check(&self, v: ParamValue) -> Result<ParamValue, ParamError> {
         match (self.kind, v) {
+            (ParamKind::Path, ParamValue::Path(p)) => Ok(ParamValue::Path(p)),
+            (ParamKind::Choice(options), ParamValue::Choice(c)) => options
+                .iter()
+                .find(|o| **o == c)
+                .map(|o| ParamValue::Choice(o))
+                .ok_or_else(|| ParamError::BadValue {
+                    name: self.name,
+                    text: c.to_string(),
+                    expected: "one of the listed options",
+                }),
+            (ParamKind::Path | ParamKind::Choice(_), v) => Err(ParamError::BadValue {
+                name: self.name,
+                text: v.to_string(),
+                expected: match self.kind {
+                    ParamKind::Path => "a file path",
+                    _ => "one of the listed options",
+                },
+            }),
+            (
+                ParamKind::Scalar | ParamKind::Rgb,
+                v @ (ParamValue::Path(_) | ParamValue::Choice(_)),
+            ) => Err(ParamError::BadValue {
+                name: self.name,
+                text: v.to_string(),
+                expected: "a number",
+            }),
             (ParamKind::Scalar, ParamValue::Scalar(x)) => {
                 self.check_scalar(x).map(ParamValue::Scalar)
             }
@@ -153,55 +233,89 @@ impl ParamSpec {
         }
     }
 
-    /// Parses the text after `=`: one number, or for RGB one or three comma-separated numbers.
+    /// Parses the text after `=`: one number, or for RGB one or three comma-separated numbers;
+    /// a path as written (not trimmed: a file name may hold spaces); a choice by its name.
     pub fn parse(&self, text: &str) -> Result<ParamValue, ParamError> {
         let bad = |expected| ParamError::BadValue {
             name: self.name,
             text: text.to_string(),
             expected,
         };
+        match self.kind {
+            ParamKind::Path => return Ok(ParamValue::Path(text.to_string())),
+            ParamKind::Choice(options) => {
+                let t = text.trim();
+                return options
+                    .iter()
+                    .find(|o| **o == t)
+                    .map(|o| ParamValue::Choice(o))
+                    .ok_or_else(|| ParamError::BadValue {
+                        name: self.name,
+                        text: text.to_string(),
+                        expected: "one of the listed options (see `brdf models`)",
+                    });
+            }
+            ParamKind::Scalar | ParamKind::Rgb => {}
+        }
         let nums: Result<Vec<f32>, _> = text.split(',').map(|s| s.trim().parse::<f32>()).collect();
         let nums = nums.map_err(|_| {
             bad(match self.kind {
-                ParamKind::Scalar => "a number",
                 ParamKind::Rgb => "one number or three comma-separated numbers",
+                _ => "a number",
             })
         })?;
         let value = match (self.kind, nums.as_slice()) {
             (_, [x]) => ParamValue::Scalar(*x),
             (ParamKind::Rgb, [r, g, b]) => ParamValue::Rgb(Vec3::new(*r, *g, *b)),
-            (ParamKind::Scalar, _) => return Err(bad("a number")),
             (ParamKind::Rgb, _) => return Err(bad("one number or three comma-separated numbers")),
+            (_, _) => return Err(bad("a number")),
         };
         self.check(value)
     }
 }
 
 /// A parameter's value.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum ParamValue {
     /// One number.
     Scalar(f32),
     /// An RGB triple.
     Rgb(Vec3),
+    /// A file path (empty: none given).
+    Path(String),
+    /// One option of a [`ParamKind::Choice`].
+    Choice(&'static str),
 }
 
 impl ParamValue {
-    /// The value as RGB (a scalar is splatted).
+    /// The value as RGB (a scalar is splatted; a path or a choice is NaN: not a number).
     #[must_use]
-    pub fn rgb(self) -> Vec3 {
+    pub fn rgb(&self) -> Vec3 {
         match self {
-            Self::Scalar(x) => Vec3::splat(x),
-            Self::Rgb(c) => c,
+            Self::Scalar(x) => Vec3::splat(*x),
+            Self::Rgb(c) => *c,
+            Self::Path(_) | Self::Choice(_) => Vec3::NAN,
         }
     }
 
-    /// The value as one number (an RGB value gives its first channel).
+    /// The value as one number (an RGB value gives its first channel; a path or a choice is
+    /// NaN).
     #[must_use]
-    pub fn scalar(self) -> f32 {
+    pub fn scalar(&self) -> f32 {
         match self {
-            Self::Scalar(x) => x,
+            Self::Scalar(x) => *x,
             Self::Rgb(c) => c.x,
+            Self::Path(_) | Self::Choice(_) => f32::NAN,
+        }
+    }
+
+    /// The text of a path or a choice (`None` for numbers).
+    #[must_use]
+    pub fn text(&self) -> Option<&str> {
+        match self {
+            Self::Path(p) => Some(p),
+            Self::Choice(c) => Some(c),
+            Self::Scalar(_) | Self::Rgb(_) => None,
         }
     }
 }
@@ -212,6 +326,8 @@ impl core::fmt::Display for ParamValue {
             Self::Scalar(x) => write!(f, "{x}"),
             Self::Rgb(c) if c.x == c.y && c.y == c.z => write!(f, "{}", c.x),
             Self::Rgb(c) => write!(f, "{},{},{}", c.x, c.y, c.z),
+            Self::Path(p) => f.write_str(p),
+            Self::Choice(c) => f.write_str(c),
         }
     }
 }
@@ -250,7 +366,7 @@ impl ParamSet {
 
     /// (spec, value) pairs in order.
     pub fn iter(&self) -> impl Iterator<Item = (&'static ParamSpec, ParamValue)> + '_ {
-        self.specs.iter().zip(self.values.iter().copied())
+        self.specs.iter().zip(self.values.iter().cloned())
     }
 
     fn index(&self, name: &str) -> Result<usize, ParamError> {
@@ -271,7 +387,7 @@ impl ParamSet {
 
     /// The value of `name`.
     pub fn get(&self, name: &str) -> Result<ParamValue, ParamError> {
-        Ok(self.values[self.index(name)?])
+        Ok(self.values[self.index(name)?].clone())
     }
 
     /// Sets `name` after checking kind and range (RGB parameters accept a scalar).
@@ -293,12 +409,18 @@ impl ParamSet {
 
     /// The scalar value of `name`; for use by model constructors (the name must exist).
     pub fn scalar(&self, name: &str) -> Result<f32, ParamError> {
-        self.get(name).map(ParamValue::scalar)
+        self.get(name).map(|v| v.scalar())
+    }
+
+    /// The text of a path or choice parameter `name` (empty for a number).
+    pub fn text(&self, name: &str) -> Result<&str, ParamError> {
+        let i = self.index(name)?;
+        Ok(self.values[i].text().unwrap_or(""))
     }
 
     /// The RGB value of `name`; for use by model constructors (the name must exist).
     pub fn rgb(&self, name: &str) -> Result<Vec3, ParamError> {
-        self.get(name).map(ParamValue::rgb)
+        self.get(name).map(|v| v.rgb())
     }
 }
 

@@ -11,8 +11,8 @@
 use crate::brdf::Brdf;
 use crate::error::{Constraint, ParamError};
 use crate::models::{
-    BlinnPhong, CookTorrance, Htsg, Lambert, LewisPhong, Mirror, OrenNayar, Phong, PoulinFournier,
-    Schlick, Strauss, Ward,
+    BlinnPhong, CookTorrance, Htsg, Lambert, LewisPhong, Merl, Mirror, OrenNayar, Phong,
+    PoulinFournier, Schlick, Strauss, Ward,
 };
 use crate::param::{ParamSet, ParamSpec};
 use alloc::boxed::Box;
@@ -46,6 +46,10 @@ pub struct ModelInfo {
     pub analytic_sampler: bool,
     /// Whether the model is a pure Dirac delta (no continuous part; no quadtree).
     pub delta: bool,
+    /// Whether the model is measured data: its defaults build nothing (a `file=PATH` is
+    /// required), so suites that build every model from its defaults give it a file of
+    /// their own (`brdf tabulate` writes one from any model).
+    pub measured: bool,
     build: fn(&ParamSet) -> Result<Box<dyn Brdf>, ParamError>,
 }
 
@@ -99,6 +103,7 @@ static MODELS: &[ModelInfo] = &[
         energy: Energy::Conserving,
         analytic_sampler: true,
         delta: false,
+        measured: false,
         build: |p| boxed(Lambert::from_params(p)),
     },
     ModelInfo {
@@ -109,6 +114,7 @@ static MODELS: &[ModelInfo] = &[
         energy: Energy::Conserving,
         analytic_sampler: true,
         delta: true,
+        measured: false,
         build: |p| boxed(Mirror::from_params(p)),
     },
     ModelInfo {
@@ -119,6 +125,7 @@ static MODELS: &[ModelInfo] = &[
         energy: Energy::NotConserving("the lobe's albedo at normal incidence is ks*2pi/(n+2)"),
         analytic_sampler: true,
         delta: false,
+        measured: false,
         build: |p| boxed(Phong::from_params(p)),
     },
     ModelInfo {
@@ -129,6 +136,7 @@ static MODELS: &[ModelInfo] = &[
         energy: Energy::ConservingIf("kd + ks <= 1"),
         analytic_sampler: true,
         delta: false,
+        measured: false,
         build: |p| boxed(BlinnPhong::from_params(p)),
     },
     ModelInfo {
@@ -139,6 +147,7 @@ static MODELS: &[ModelInfo] = &[
         energy: Energy::Conserving,
         analytic_sampler: true,
         delta: false,
+        measured: false,
         build: |p| boxed(LewisPhong::from_params(p)),
     },
     ModelInfo {
@@ -151,6 +160,7 @@ static MODELS: &[ModelInfo] = &[
         ),
         analytic_sampler: true,
         delta: false,
+        measured: false,
         build: |p| boxed(CookTorrance::from_params(p)),
     },
     ModelInfo {
@@ -161,6 +171,7 @@ static MODELS: &[ModelInfo] = &[
         energy: Energy::NotConserving(ENERGY_HTSG),
         analytic_sampler: false,
         delta: false,
+        measured: false,
         build: |p| boxed(Htsg::from_params(p)),
     },
     ModelInfo {
@@ -171,6 +182,7 @@ static MODELS: &[ModelInfo] = &[
         energy: Energy::Conserving,
         analytic_sampler: false,
         delta: false,
+        measured: false,
         build: |p| boxed(PoulinFournier::from_params(p)),
     },
     ModelInfo {
@@ -181,6 +193,7 @@ static MODELS: &[ModelInfo] = &[
         energy: Energy::NotConserving("slightly above 1 at grazing incidence for albedo 1"),
         analytic_sampler: true,
         delta: false,
+        measured: false,
         build: |p| boxed(OrenNayar::from_params(p)),
     },
     ModelInfo {
@@ -191,6 +204,7 @@ static MODELS: &[ModelInfo] = &[
         energy: Energy::NotConserving("the albedo grows as 1/sqrt(cos theta_i) near grazing"),
         analytic_sampler: true,
         delta: false,
+        measured: false,
         build: |p| boxed(Ward::from_params(p)),
     },
     ModelInfo {
@@ -201,6 +215,7 @@ static MODELS: &[ModelInfo] = &[
         energy: Energy::NotConserving("above 1 near grazing for small roughness"),
         analytic_sampler: true,
         delta: false,
+        measured: false,
         build: |p| boxed(Schlick::from_params(p)),
     },
     ModelInfo {
@@ -213,11 +228,23 @@ static MODELS: &[ModelInfo] = &[
         ),
         analytic_sampler: true,
         delta: false,
+        measured: false,
         build: |p| boxed(Strauss::from_params(p)),
+    },
+    ModelInfo {
+        name: "merl",
+        summary: "measured isotropic BRDF in the MERL database's binary format (Matusik et al. 2003), looked up in half/difference angles",
+        params: Merl::PARAMS,
+        reciprocal: true,
+        energy: Energy::NotConserving("measured data: the albedo is whatever the file holds"),
+        analytic_sampler: false,
+        delta: false,
+        measured: true,
+        build: |p| boxed(Merl::from_params(p)),
     },
 ];
 
-/// Every registered model, in MODELS.md order.
+/// Every registered model, in MODELS.md order (the measured `merl` last).
 #[must_use]
 pub fn models() -> &'static [ModelInfo] {
     MODELS

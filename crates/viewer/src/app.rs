@@ -208,6 +208,8 @@ pub struct ViewerApp {
         Receiver<Arc<egui::ColorImage>>,
     ),
     export_pending: Option<PathBuf>,
+    /// The text of a path parameter being edited (committed with Enter or "open").
+    path_text: String,
 }
 
 impl ViewerApp {
@@ -266,7 +268,13 @@ impl ViewerApp {
             export_status: None,
             screenshots: channel(),
             export_pending: None,
+            path_text: String::new(),
         };
+        if let Some(p) = app.params.iter().find_map(|(s, v)| {
+            (s.kind == ParamKind::Path).then(|| v.text().unwrap_or("").to_owned())
+        }) {
+            app.path_text = p;
+        }
         app.rebuild_brdf();
         app
     }
@@ -281,6 +289,14 @@ impl ViewerApp {
     pub fn set_model(&mut self, name: &str) -> Result<(), String> {
         self.model = registry::find(name).map_err(|e| e.to_string())?;
         self.params = self.model.defaults();
+        if self.model.measured && !self.path_text.is_empty() {
+            // Back to the measured model: the file last named is still the one meant.
+            if let Some(spec) = self.model.params.iter().find(|p| p.kind == ParamKind::Path) {
+                let _ = self
+                    .params
+                    .set(spec.name, ParamValue::Path(self.path_text.clone()));
+            }
+        }
         self.rebuild_brdf();
         Ok(())
     }
@@ -429,6 +445,59 @@ impl ViewerApp {
         }
     }
 
+    /// A path parameter: a text field committed with Enter or the "open" button (a file is
+    /// read once per commit, not per keystroke). Returns whether the value changed.
+    fn path_field(&mut self, ui: &mut egui::Ui, spec: &'static brdf_core::ParamSpec) -> bool {
+        let mut commit = false;
+        ui.label(spec.name).on_hover_text(spec.doc);
+        ui.horizontal(|ui| {
+            let edit = ui.add(
+                egui::TextEdit::singleline(&mut self.path_text)
+                    .hint_text("path to a .binary file, or drop one on the window")
+                    .desired_width(200.0),
+            );
+            commit |= edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
+            commit |= ui.button("open").clicked();
+        });
+        if !commit {
+            return false;
+        }
+        self.params
+            .set(
+                spec.name,
+                ParamValue::Path(self.path_text.trim().to_owned()),
+            )
+            .is_ok()
+    }
+
+    /// Opens a measured BRDF file: switches to the model with a path parameter (`merl`) and
+    /// sets it; errors (a malformed file) show in the window like every other model error.
+    pub fn open_file(&mut self, path: &std::path::Path) {
+        let Some(info) = registry::models()
+            .iter()
+            .find(|m| m.params.iter().any(|p| p.kind == ParamKind::Path))
+        else {
+            return;
+        };
+        if self.model.name != info.name {
+            self.model = info;
+            self.params = info.defaults();
+        }
+        self.path_text = path.display().to_string();
+        if let Some(spec) = info.params.iter().find(|p| p.kind == ParamKind::Path) {
+            let _ = self
+                .params
+                .set(spec.name, ParamValue::Path(self.path_text.clone()));
+        }
+        self.rebuild_brdf();
+    }
+
+    /// The model's error as the window shows it (`None` when it built).
+    #[must_use]
+    pub fn model_error(&self) -> Option<&str> {
+        self.brdf.as_ref().err().map(String::as_str)
+    }
+
     fn rebuild_brdf(&mut self) {
         self.brdf = self
             .model
@@ -546,11 +615,34 @@ impl ViewerApp {
             let Ok(value) = self.params.get(spec.name) else {
                 continue;
             };
+            match spec.kind {
+                ParamKind::Path => {
+                    changed |= self.path_field(ui, spec);
+                    continue;
+                }
+                ParamKind::Choice(options) => {
+                    let mut chosen = value.text().unwrap_or("").to_owned();
+                    ui.horizontal(|ui| {
+                        ui.label(spec.name).on_hover_text(spec.doc);
+                        egui::ComboBox::from_id_salt(spec.name)
+                            .selected_text(chosen.clone())
+                            .show_ui(ui, |ui| {
+                                for o in options {
+                                    ui.selectable_value(&mut chosen, (*o).to_owned(), *o);
+                                }
+                            });
+                    });
+                    if Some(chosen.as_str()) != value.text()
+                        && let Some(o) = options.iter().find(|o| **o == chosen)
+                    {
+                        changed |= self.params.set(spec.name, ParamValue::Choice(o)).is_ok();
+                    }
+                    continue;
+                }
+                ParamKind::Scalar | ParamKind::Rgb => {}
+            }
             let mut v = value.rgb().to_array();
-            let channels = match spec.kind {
-                ParamKind::Scalar => 1,
-                ParamKind::Rgb => 3,
-            };
+            let channels = if spec.kind == ParamKind::Rgb { 3 } else { 1 };
             ui.horizontal(|ui| {
                 ui.label(spec.name).on_hover_text(spec.doc);
                 for c in v.iter_mut().take(channels) {
@@ -565,9 +657,10 @@ impl ViewerApp {
                         .changed();
                 }
             });
-            let new = match spec.kind {
-                ParamKind::Scalar => ParamValue::Scalar(v[0]),
-                ParamKind::Rgb => ParamValue::Rgb(Vec3::from_array(v)),
+            let new = if spec.kind == ParamKind::Rgb {
+                ParamValue::Rgb(Vec3::from_array(v))
+            } else {
+                ParamValue::Scalar(v[0])
             };
             // A value at an open end of its range (e.g. 0 for (0, 1]) is refused: keep the old.
             let _ = self.params.set(spec.name, new);
@@ -988,8 +1081,13 @@ fn map_name(map: DiskMap) -> &'static str {
 
 impl eframe::App for ViewerApp {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
-        self.pump();
         let ctx = ui.ctx().clone();
+        // A file dropped on the window opens as a measured BRDF.
+        let dropped = ctx.input(|i| i.raw.dropped_files.first().map(|f| f.path().to_path_buf()));
+        if let Some(path) = dropped {
+            self.open_file(&path);
+        }
+        self.pump();
         self.refresh_textures(&ctx);
         self.finish_export(&ctx);
         egui::Panel::left("controls")

@@ -19,6 +19,17 @@ fn default_json(s: &ParamSpec) -> Value {
     match s.kind {
         ParamKind::Scalar => num(s.default[0]),
         ParamKind::Rgb => Value::Array(s.default.iter().copied().map(num).collect()),
+        ParamKind::Path | ParamKind::Choice(_) => json!(s.default_value().to_string()),
+    }
+}
+
+/// The kind's name in `brdf models --json`: scalar, rgb, path or choice.
+fn kind_name(k: ParamKind) -> &'static str {
+    match k {
+        ParamKind::Scalar => "scalar",
+        ParamKind::Rgb => "rgb",
+        ParamKind::Path => "path",
+        ParamKind::Choice(_) => "choice",
     }
 }
 
@@ -36,16 +47,23 @@ fn model_json(m: &ModelInfo) -> Value {
         "energy_note": energy_note,
         "analytic_sampler": m.analytic_sampler,
         "delta": m.delta,
-        "params": m.params.iter().map(|s| json!({
-            "name": s.name,
-            "kind": match s.kind { ParamKind::Scalar => "scalar", ParamKind::Rgb => "rgb" },
-            "default": default_json(s),
-            "min": num(s.min),
-            "max": num(s.max),
-            "min_exclusive": s.min_exclusive,
-            "range": s.range_text(),
-            "doc": s.doc,
-        })).collect::<Vec<_>>(),
+        "measured": m.measured,
+        "params": m.params.iter().map(|s| {
+            let mut p = json!({
+                "name": s.name,
+                "kind": kind_name(s.kind),
+                "default": default_json(s),
+                "min": if s.is_numeric() { num(s.min) } else { Value::Null },
+                "max": if s.is_numeric() { num(s.max) } else { Value::Null },
+                "min_exclusive": s.min_exclusive,
+                "range": s.range_text(),
+                "doc": s.doc,
+            });
+            if let ParamKind::Choice(options) = s.kind {
+                p["options"] = json!(options);
+            }
+            p
+        }).collect::<Vec<_>>(),
     })
 }
 
@@ -59,10 +77,15 @@ pub(crate) fn run(json: bool, mut out: impl Write) -> Result<(), CliError> {
     for m in registry::models() {
         writeln!(out, "{}  {}", m.name, m.summary)?;
         for s in m.params {
-            let default = s.default_value().to_string();
+            let mut default = s.default_value().to_string();
+            if default.is_empty() {
+                default = "(required)".into();
+            }
             let kind = match s.kind {
                 ParamKind::Scalar => "",
                 ParamKind::Rgb => " (rgb)",
+                ParamKind::Path => " (path)",
+                ParamKind::Choice(_) => " (choice)",
             };
             writeln!(
                 out,
