@@ -38,6 +38,9 @@ pub const SETS: &[(&str, &str, &[&str])] = &[
     ("schlick-sharp", "schlick", &["r=0.01"]),
     ("strauss", "strauss", &[]),
     ("strauss-sharp", "strauss", &["smoothness=0.9"]),
+    // Measured data (SPEC §8): the file is written by [`measured_file`] (no database file is
+    // shipped), read with the database's own nearest lookup.
+    ("merl-measured", "merl", &["interp=nearest"]),
 ];
 
 /// The sets `brdf bench --quick` measures: one diffuse, the three glossy targets, and the two
@@ -51,12 +54,57 @@ pub const QUICK_SETS: &[&str] = &[
     "poulin-fournier",
 ];
 
-/// Models whose eval costs microseconds: a target-trials build takes minutes on 2 cores.
-pub const COSTLY: &[&str] = &["htsg", "poulin-fournier"];
+/// Models whose eval costs microseconds, or whose piecewise-constant data makes adaptive
+/// integration slow: a target-trials build takes minutes on 2 cores.
+pub const COSTLY: &[&str] = &["htsg", "poulin-fournier", "merl"];
 
-/// Builds a set's model.
+/// Builds a set's model. A measured model given no `file=` reads [`measured_file`].
 pub fn model(name: &str, params: &[&str]) -> Result<Box<dyn Brdf>, ParamError> {
+    let measured = registry::find(name)?.measured;
+    if measured && !params.iter().any(|p| p.trim_start().starts_with("file=")) {
+        let file = format!("file={}", measured_file().display());
+        return registry::create(name, params.iter().copied().chain([file.as_str()]));
+    }
     registry::create(name, params.iter().copied())
+}
+
+/// f_r of a measured-looking material in the MERL layout, channel-major input for
+/// [`crate::models::merl::encode`]: `model` tabulated at the bins' centres, each bin scaled
+/// by 1 + `noise`·(2u − 1) (u uniform, PCG64 seeded by `seed`), and every bin with θd beyond
+/// 85° "not measured" (−1), as real gonioreflectometer data has.
+pub fn measured_like(model: &dyn Brdf, noise: f64, seed: u64) -> Vec<[f64; 3]> {
+    use rand_core::Rng;
+    let mut f = crate::models::merl::tabulate(model);
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    for (k, v) in f.iter_mut().enumerate() {
+        if (k / crate::models::merl::MERL_PHI_D) % crate::models::merl::MERL_THETA_D >= 85 {
+            *v = [-1.0; 3];
+            continue;
+        }
+        let u = (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+        let n = 1.0 + noise * (2.0 * u - 1.0);
+        *v = v.map(|x| x * n);
+    }
+    f
+}
+
+/// The benches' measured file: Cook–Torrance m = 0.1, kd = 0.1 through [`measured_like`]
+/// (3 % noise, seed 42), written once per process into the temporary directory (complete or
+/// absent: written beside and renamed).
+///
+/// # Panics
+/// When the temporary directory cannot be written.
+pub fn measured_file() -> &'static std::path::Path {
+    static FILE: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
+    FILE.get_or_init(|| {
+        let path =
+            std::env::temp_dir().join(format!("brdf-bench-measured-{}.binary", std::process::id()));
+        let ct = registry::create("cook-torrance", ["m=0.1", "kd=0.1"]).expect("valid parameters");
+        let bytes = crate::models::merl::encode(&measured_like(&*ct, 0.03, 42));
+        crate::quadtree_sampler::write_atomically(&path, &bytes)
+            .unwrap_or_else(|e| panic!("writing {}: {e}", path.display()));
+        path
+    })
 }
 
 /// The incident (viewing) direction of the benches: θ = 45°, φ = 30°.

@@ -2,6 +2,7 @@
 
 mod cli;
 mod fuzz;
+mod merl;
 mod readme;
 mod reference;
 mod validation;

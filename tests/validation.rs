@@ -48,7 +48,7 @@ fn brdf(args: &[String]) -> Output {
 
 /// θ = 0°, 45°, 80° at φ = 30°, and one cosine-distributed direction drawn from a seed that
 /// depends on the run (z ≥ 0.05, so the random one is never a fourth grazing case).
-fn incident_directions(run: u64) -> Vec<String> {
+pub(crate) fn incident_directions(run: u64) -> Vec<String> {
     let mut out: Vec<String> = [0.0f64, 45.0, 80.0]
         .iter()
         .map(|t| {

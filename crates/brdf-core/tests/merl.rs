@@ -328,7 +328,7 @@ fn every_malformed_file_is_its_own_typed_error() {
     let m = open(&p, "nearest").unwrap();
     let f = m.eval(Vec3::Z, Vec3::new(0.6, 0.0, 0.8));
     assert!(
-        (f.x - 0.1 as f32).abs() < 1e-7 && (f.z - 0.3 as f32).abs() < 1e-7,
+        (f.x - 0.1_f32).abs() < 1e-7 && (f.z - 0.3_f32).abs() < 1e-7,
         "{f}"
     );
     // Every error message names the file.
@@ -354,7 +354,7 @@ fn declared_symmetries_hold_by_evaluation() {
     let dir = |rng: &mut rand_pcg::Pcg64| {
         let (t, p) = (
             rng.random_range(0.05..1.4f32),
-            rng.random_range(0.0..6.28f32),
+            rng.random_range(0.0..std::f32::consts::TAU),
         );
         Vec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
     };
@@ -362,7 +362,7 @@ fn declared_symmetries_hold_by_evaluation() {
         let (wi, wo) = (dir(&mut rng), dir(&mut rng));
         let f = m.eval(wi, wo);
         let g = m.eval(wo, wi);
-        let rot = glam::Quat::from_rotation_z(rng.random_range(0.0..6.28f32));
+        let rot = glam::Quat::from_rotation_z(rng.random_range(0.0..std::f32::consts::TAU));
         let h = m.eval(rot * wi, rot * wo);
         let tol = 1e-3 * f.max_element() + 1e-6;
         assert!((f - g).abs().max_element() <= tol, "reciprocity {f} {g}");

@@ -293,3 +293,65 @@ fn the_baked_sampler_follows_the_lobe_off_its_grid() {
     );
     assert!(test.passed(), "baked vs phong n=200: {:?}", test.chi2);
 }
+
+/// A file dropped on the window, as an integration delivers it.
+#[derive(Debug)]
+struct Dropped(std::path::PathBuf);
+
+impl egui::DroppedFile for Dropped {
+    fn path(&self) -> &std::path::Path {
+        &self.0
+    }
+    fn bytes(&self) -> Result<Vec<u8>, String> {
+        std::fs::read(&self.0).map_err(|e| e.to_string())
+    }
+}
+
+/// A measured BRDF opens by dropping its file on the window: the model becomes `merl`, the
+/// tree and the live test follow it like any model; a malformed file's error shows in the
+/// window (naming the file) beside the path field, and a good file then opens.
+#[test]
+fn a_dropped_measured_file_opens_as_merl_and_errors_show_in_the_window() {
+    use brdf_core::models::merl;
+    let dir = std::env::temp_dir().join(format!("viewer-merl-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let good = dir.join("phong.binary");
+    let phong = brdf_core::registry::create("phong", ["n=50"]).unwrap();
+    let bytes = merl::encode(&merl::tabulate(&*phong));
+    std::fs::write(&good, &bytes).unwrap();
+    let bad = dir.join("truncated.binary");
+    std::fs::write(&bad, &bytes[..1000]).unwrap();
+
+    let mut h = harness(small("lambert"));
+    settle(&mut h);
+    h.input_mut()
+        .dropped_files
+        .push(std::sync::Arc::new(Dropped(bad.clone())));
+    h.run_steps(2);
+    assert_eq!(h.state().model_name(), "merl");
+    let e = h
+        .state()
+        .model_error()
+        .expect("a truncated file is an error");
+    assert!(
+        e.contains("truncated") && e.contains("truncated.binary"),
+        "{e}"
+    );
+    // Shown in the window: the error names the file, and the path field is there to fix it.
+    assert!(
+        h.get_all_by_label_contains("truncated: 1000 bytes")
+            .next()
+            .is_some()
+    );
+    h.get_by_label("open");
+    h.state_mut().open_file(&good);
+    settle(&mut h);
+    assert!(h.state().model_error().is_none());
+    let stats = h
+        .state()
+        .tree_stats()
+        .expect("a tree for the measured file");
+    assert!(stats.expected_trials <= 2.0, "{stats:?}");
+    assert!(h.state().live_test().unwrap().passed());
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -9,6 +9,7 @@ mod images;
 mod models;
 mod progress;
 mod sample;
+mod tabulate;
 mod test;
 
 use clap::{Parser, Subcommand};
@@ -79,6 +80,16 @@ enum Command {
         model: ModelArgs,
         #[command(flatten)]
         bake: bake::BakeArgs,
+    },
+    /// Writes any model's f_r in the MERL database's binary format (SPEC §8) at each bin's
+    /// centre, so that `--model merl --param file=FILE` reproduces the model there; prints one
+    /// JSON object (model, params, file, bytes, bins, zero_bins, seconds).
+    Tabulate {
+        #[command(flatten)]
+        model: ModelArgs,
+        /// The file to write (complete or not at all).
+        #[arg(long)]
+        out: std::path::PathBuf,
     },
     /// The validation of SPEC §5 for any sampler: histogram --samples directions over a cell
     /// grid and compare with ∫f·cos per cell (the seed's a_i spread, Pearson χ²) and with the
@@ -211,6 +222,10 @@ fn run(cli: Cli) -> Result<Outcome, CliError> {
             bake::run(brdf.into(), &bake, stdout)
         }
         Command::Bench { bench } => bench::run(&bench, stdout),
+        Command::Tabulate { model, out } => {
+            let brdf = model.build()?;
+            tabulate::run(&*brdf, &out, stdout)
+        }
         Command::Test { model, mut test } => {
             let brdf = model.resolve(test.options_mut())?;
             use brdf_sampling::quadtree_sampler::validate::Verdict;

@@ -67,15 +67,29 @@ impl MerlLookup {
 #[must_use]
 pub fn half_diff(wi: DVec3, wo: DVec3) -> [f64; 4] {
     let h = (wi + wo).normalize_or_zero();
-    let theta_h = m::acos(h.z.clamp(-1.0, 1.0));
-    let phi_h = m::atan2(h.y, h.x);
-    let (sp, cp) = (m::sin(phi_h), m::cos(phi_h));
+    let [theta_h, theta_d, phi_d] = half_diff_lookup(wi, h);
+    [theta_h, m::atan2(h.y, h.x), theta_d, phi_d]
+}
+
+/// (θh, θd, φd) of `wi` and the unit half vector `h`: the rotations by −φh and −θh use the
+/// half vector's own components as their sines and cosines (sin θh = |h_xy|, cos θh = h_z,
+/// (cos φh, sin φh) = h_xy/|h_xy|), so the lookup costs two `acos` and one `atan2`.
+#[inline]
+fn half_diff_lookup(wi: DVec3, h: DVec3) -> [f64; 3] {
+    let rho = m::sqrt(h.x * h.x + h.y * h.y);
+    let (cp, sp) = if rho > 0.0 {
+        (h.x / rho, h.y / rho)
+    } else {
+        (1.0, 0.0)
+    };
     let t = DVec3::new(wi.x * cp + wi.y * sp, wi.y * cp - wi.x * sp, wi.z);
-    let (st, ct) = (m::sin(theta_h), m::cos(theta_h));
+    let (st, ct) = (rho, h.z);
     let d = DVec3::new(t.x * ct - t.z * st, t.y, t.z * ct + t.x * st);
-    let theta_d = m::acos(d.z.clamp(-1.0, 1.0));
-    let phi_d = m::atan2(d.y, d.x);
-    [theta_h, phi_h, theta_d, phi_d]
+    [
+        m::acos(h.z.clamp(-1.0, 1.0)),
+        m::acos(d.z.clamp(-1.0, 1.0)),
+        m::atan2(d.y, d.x),
+    ]
 }
 
 /// The inverse of [`half_diff`]: the unit pair (wi, wo) of the angles (θh, φh, θd, φd).
@@ -131,10 +145,10 @@ pub fn bin_centre([th, td, pd]: [usize; 3]) -> [f64; 3] {
     ]
 }
 
-/// A parsed file: f_r per bin and channel (already scaled; "not measured" stored as 0),
-/// channel-major as in the file.
+/// A parsed file: f_r per bin, RGB together (already scaled; "not measured" stored as 0), so
+/// that one lookup touches one cache line rather than three 5.8 MB apart as in the file.
 pub struct MerlData {
-    values: Vec<f32>,
+    values: Vec<[f32; 3]>,
     unmeasured: usize,
 }
 
@@ -175,7 +189,7 @@ impl MerlData {
             return Err(err(DataFault::Dimensions { found: dims }));
         }
         check_size(len).map_err(err)?;
-        let mut values = Vec::with_capacity(3 * MERL_BINS);
+        let mut values = alloc::vec![[0.0f32; 3]; MERL_BINS];
         let mut unmeasured = 0;
         for (i, chunk) in bytes[12..].chunks_exact(8).enumerate() {
             let mut b = [0u8; 8];
@@ -187,11 +201,11 @@ impl MerlData {
                     bin: (i % MERL_BINS) as u32,
                 }));
             }
+            let (channel, bin) = (i / MERL_BINS, i % MERL_BINS);
             if v < 0.0 {
                 unmeasured += 1;
-                values.push(0.0);
             } else {
-                values.push((v * MERL_SCALE[i / MERL_BINS]) as f32);
+                values[bin][channel] = (v * MERL_SCALE[channel]) as f32;
             }
         }
         Ok(Self { values, unmeasured })
@@ -207,11 +221,7 @@ impl MerlData {
     #[inline]
     #[must_use]
     pub fn bin(&self, index: usize) -> Vec3 {
-        Vec3::new(
-            self.values[index],
-            self.values[index + MERL_BINS],
-            self.values[index + 2 * MERL_BINS],
-        )
+        Vec3::from_array(self.values[index])
     }
 
     /// f_r at the half/difference angles, by `lookup`.
@@ -510,7 +520,7 @@ impl Brdf for Merl {
         let Some((wi, wo)) = upper_pair(wi, wo) else {
             return Vec3::ZERO;
         };
-        let [theta_h, _, theta_d, phi_d] = half_diff(wi, wo);
+        let [theta_h, theta_d, phi_d] = half_diff_lookup(wi, (wi + wo).normalize_or_zero());
         self.data.lookup(theta_h, theta_d, phi_d, self.lookup)
     }
 }
