@@ -267,16 +267,9 @@ fn validate(path: &Path, extra_params: &[&str], run: u64, extent: Extent) {
             t["chi2_own"]["p_value"].as_f64().unwrap_or(f64::NAN),
             t["passed"]
         );
-        assert_eq!(t["lost"], 0, "{t}");
-        assert_eq!(t["outside"], 0, "{t}");
-        assert_eq!(t["inconsistent"], 0, "{t}");
+        crate::validation::assert_clean(t, true);
     }
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "rejected: {}",
-        serde_json::to_string_pretty(&v).unwrap()
-    );
+    crate::validation::assert_passed(&o, &v, &path.display().to_string());
 }
 
 /// Blinn–Phong n = 1000, tabulated (each test its own copy: tests run in parallel).

@@ -193,15 +193,7 @@ impl ParamSpec {
     pub fn check(&self, v: ParamValue) -> Result<ParamValue, ParamError> {
         match (self.kind, v) {
             (ParamKind::Path, ParamValue::Path(p)) => Ok(ParamValue::Path(p)),
-            (ParamKind::Choice(options), ParamValue::Choice(c)) => options
-                .iter()
-                .find(|o| **o == c)
-                .map(|o| ParamValue::Choice(o))
-                .ok_or_else(|| ParamError::BadValue {
-                    name: self.name,
-                    text: c.to_string(),
-                    expected: "one of the listed options",
-                }),
+            (ParamKind::Choice(options), ParamValue::Choice(c)) => self.choose(options, c),
             (ParamKind::Path | ParamKind::Choice(_), v) => Err(ParamError::BadValue {
                 name: self.name,
                 text: v.to_string(),
@@ -233,6 +225,23 @@ impl ParamSpec {
         }
     }
 
+    /// The option of `options` named `name`, or [`ParamError::BadValue`].
+    fn choose(
+        &self,
+        options: &'static [&'static str],
+        name: &str,
+    ) -> Result<ParamValue, ParamError> {
+        options
+            .iter()
+            .find(|o| **o == name)
+            .map(|o| ParamValue::Choice(o))
+            .ok_or_else(|| ParamError::BadValue {
+                name: self.name,
+                text: name.to_string(),
+                expected: "one of the listed options (see `brdf models`)",
+            })
+    }
+
     /// Parses the text after `=`: one number, or for RGB one or three comma-separated numbers;
     /// a path as written (not trimmed: a file name may hold spaces); a choice by its name.
     pub fn parse(&self, text: &str) -> Result<ParamValue, ParamError> {
@@ -243,18 +252,7 @@ impl ParamSpec {
         };
         match self.kind {
             ParamKind::Path => return Ok(ParamValue::Path(text.to_string())),
-            ParamKind::Choice(options) => {
-                let t = text.trim();
-                return options
-                    .iter()
-                    .find(|o| **o == t)
-                    .map(|o| ParamValue::Choice(o))
-                    .ok_or_else(|| ParamError::BadValue {
-                        name: self.name,
-                        text: text.to_string(),
-                        expected: "one of the listed options (see `brdf models`)",
-                    });
-            }
+            ParamKind::Choice(options) => return self.choose(options, text.trim()),
             ParamKind::Scalar | ParamKind::Rgb => {}
         }
         let nums: Result<Vec<f32>, _> = text.split(',').map(|s| s.trim().parse::<f32>()).collect();
