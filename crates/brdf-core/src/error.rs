@@ -164,6 +164,9 @@ pub enum DataFault {
     Missing,
     /// The path is a directory.
     Directory,
+    /// The path is not a regular file (a device, a pipe, a socket): never read, since
+    /// reading one could block or never end.
+    NotRegular,
     /// The file exists but may not be read.
     PermissionDenied,
     /// Reading failed for another reason.
@@ -203,6 +206,7 @@ impl fmt::Display for DataFault {
         match self {
             Self::Missing => f.write_str("no such file"),
             Self::Directory => f.write_str("is a directory, not a file"),
+            Self::NotRegular => f.write_str("is not a regular file (a device or a pipe)"),
             Self::PermissionDenied => f.write_str("permission denied"),
             Self::Unreadable => f.write_str("cannot be read"),
             Self::Truncated { bytes, expected } => write!(

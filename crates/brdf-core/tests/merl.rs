@@ -259,6 +259,23 @@ fn every_malformed_file_is_its_own_typed_error() {
     // Missing, a directory, empty, a short header.
     assert_eq!(fault(&temp("does-not-exist.binary")), DataFault::Missing);
     assert_eq!(fault(&std::env::temp_dir()), DataFault::Directory);
+    // A device is refused before any read (/dev/zero would read 35 MB, a pipe could block).
+    #[cfg(unix)]
+    for device in ["/dev/null", "/dev/zero"] {
+        assert_eq!(fault(Path::new(device)), DataFault::NotRegular, "{device}");
+    }
+    // A file far larger than the format (sparse: nothing on disk) is refused from its
+    // size, without reading or allocating for it.
+    let huge = temp("huge.binary");
+    std::fs::File::create(&huge)
+        .unwrap()
+        .set_len(1 << 36)
+        .unwrap();
+    assert!(matches!(
+        fault(&huge),
+        DataFault::WrongSize { bytes, .. } if bytes == 1 << 36
+    ));
+    std::fs::remove_file(&huge).unwrap();
     assert!(matches!(
         fault(&write("empty.binary", &[])),
         DataFault::Truncated { bytes: 0, .. }

@@ -442,6 +442,10 @@ mod cache {
         if meta.is_dir() {
             return Err(err(DataFault::Directory));
         }
+        if !meta.is_file() {
+            // A device or a pipe: reading it could block forever or never end.
+            return Err(err(DataFault::NotRegular));
+        }
         if meta.len() > super::MERL_FILE_BYTES {
             // Refused before reading: a huge file is never loaded.
             return Err(err(DataFault::WrongSize {
