@@ -17,11 +17,10 @@
 //! and every tree's structure. Each failure is its own [`BakeFileError`]; nothing panics,
 //! and no length in the file is trusted before the checksum has passed.
 
-use crate::baked::{
-    BakeConfig, BakeGrid, BakedSampler, PhiDomain, Slice, Tables, WarpNode, WarpTable,
-};
+use crate::baked::{BakeConfig, BakeGrid, BakedSampler, PhiDomain, Slice, Tables};
 use crate::config::{BuildConfig, IntegrationRule};
 use crate::packed::PackedTree;
+use crate::warp_table::WarpTable;
 use alloc::string::{String, ToString};
 use alloc::sync::Arc;
 use alloc::vec::Vec;
@@ -255,7 +254,7 @@ fn slice_record(s: &Slice) -> SliceRecord {
         volume: s.tree.volume(),
         budget_exhausted: s.tree.stats().budget_exhausted,
         packed: s.tree.raw_nodes(),
-        warp: s.warp.nodes.iter().map(|n| (n.link, n.q)).collect(),
+        warp: s.warp.shares().collect(),
     }
 }
 
@@ -277,26 +276,21 @@ fn slices_from(
         }
         let tree = PackedTree::from_raw(&r.packed, map, r.volume, r.budget_exhausted)
             .map_err(|fault| BakeFileError::Tree { index, fault })?;
-        let warp = WarpTable::from_raw(
-            r.warp
-                .into_iter()
-                .map(|(link, q)| WarpNode { link, q })
-                .collect(),
-        )
-        .map_err(|fault| BakeFileError::Tree { index, fault })?;
-        if warp.nodes.len() != tree.nodes().len()
-            || warp
-                .nodes
+        let warp =
+            WarpTable::from_raw(r.warp).map_err(|fault| BakeFileError::Tree { index, fault })?;
+        if warp.len() != tree.nodes().len()
+            || tree
+                .nodes()
                 .iter()
-                .zip(tree.nodes())
-                .any(|(w, p)| (w.link == crate::baked::WARP_LEAF) != p.is_leaf())
+                .enumerate()
+                .any(|(i, p)| warp.is_leaf(i) != p.is_leaf())
         {
             return Err(BakeFileError::Tree {
                 index,
                 fault: "its warp table and its tree differ in shape",
             });
         }
-        slices.push(Slice { wi, tree, warp });
+        slices.push(Slice::new(wi, tree, warp));
     }
     Ok(Tables { slices })
 }

@@ -7,8 +7,9 @@
 //! anisotropic one a 2D grid in (θi, φi) over the part of the φ circle its declared mirror
 //! symmetries leave ([`brdf_core::Symmetry`]: a quarter for Ward, Schlick's slab and
 //! Poulin–Fournier's cylinders). Each grid tree is kept twice, compactly: its 16-byte
-//! rejection layout ([`PackedTree`]) and an 8-byte-per-node warp table (the same leaves, each
-//! node's share of the volume), so one bake serves both [`BakedMode`]s.
+//! rejection layout ([`PackedTree`]) and a 20-byte-per-node warp table (the same leaves:
+//! each node's share of the volume, and the split probabilities and leaf densities the warp
+//! reads, see `warp_table.rs`), so one bake serves both [`BakedMode`]s.
 //!
 //! ## Sampling at a wi off the grid: an exact mixture
 //! `wi` is first folded into the grid's domain by its symmetries (a rotation about z, or
@@ -33,7 +34,8 @@
 //! - **warp**: tree k's piecewise-constant proxy (each leaf's share of the volume spread
 //!   uniformly over its square), a deterministic function of (uc, u) — stratified and
 //!   low-discrepancy points stay stratified — and its pdf is a table look-up per neighbour,
-//!   without evaluating the model.
+//!   without evaluating the model (the neighbour that drew a sample gives its leaf's density
+//!   without a look-up while the sample's direction maps back into that leaf).
 //!
 //! ## Transport roles
 //! The tables sample `wo` (toward the viewer) given `wi` (toward the light): a light path's
@@ -58,6 +60,7 @@ use crate::error::BuildError;
 use crate::packed::PackedTree;
 use crate::sampler::{Sample, rejection_in_leaf};
 use crate::tree::Quadtree;
+use crate::warp_table::{WarpLeaf, WarpTable};
 use alloc::sync::Arc;
 use alloc::vec::Vec;
 use brdf_core::geometry::{above_horizon, luminance, mirror};
@@ -67,7 +70,7 @@ use brdf_core::{Brdf, BrdfSample, DirectionError, ParamSet, PeakHints, Symmetry}
 use core::f64::consts::{FRAC_PI_2, PI, TAU};
 use core::fmt;
 use core::sync::atomic::{AtomicU64, Ordering};
-use glam::{DMat3, DQuat, DVec2, DVec3, Vec2, Vec3};
+use glam::{DMat3, DQuat, DVec3, Vec2, Vec3};
 use rand_core::Rng;
 
 /// The polar angle of the grid's last row of trees, in degrees. A `wi` beyond it (up to the
@@ -431,7 +434,7 @@ impl BakeGrid {
         let nt = self.thetas.len();
         let dt = self.thetas[1] - self.thetas[0];
         let t = (theta / dt).clamp(0.0, (nt - 1) as f64);
-        let i = (m::floor(t) as usize).min(nt - 2);
+        let i = (t as usize).min(nt - 2);
         let ft = (t - i as f64).clamp(0.0, 1.0);
         let np = self.phis.len();
         let (j0, j1, fp) = match self.domain {
@@ -443,14 +446,14 @@ impl BakeGrid {
                     phi += TAU;
                 }
                 let p = phi / dp;
-                let j = (m::floor(p) as usize).min(np - 1);
+                let j = (p as usize).min(np - 1);
                 (j, (j + 1) % np, (p - j as f64).clamp(0.0, 1.0))
             }
             _ => {
                 let (lo, hi) = self.domain.range();
                 let phi = m::atan2(w.y, w.x).clamp(lo, hi);
                 let p = ((phi - lo) / (hi - lo) * (np - 1) as f64).clamp(0.0, (np - 1) as f64);
-                let j = (m::floor(p) as usize).min(np - 2);
+                let j = (p as usize).min(np - 2);
                 (j, j + 1, (p - j as f64).clamp(0.0, 1.0))
             }
         };
@@ -478,155 +481,29 @@ fn fast_acos(x: f64) -> f64 {
 
 /// The rotation about y that carries the mirror direction of `from` onto that of `to`, both
 /// in the xz-plane with x ≥ 0 (an isotropic grid's directions, and a wi folded onto φ = 0):
-/// the rotation by θ_from − θ_to, from the directions' sines and cosines without
-/// trigonometry. Equal to `DQuat::from_rotation_arc` of the two mirrors (a test says so),
-/// at a fraction of its cost: it runs for every neighbour of every `sample` and `pdf`.
-/// Both are unit vectors (to rounding): their x and z are their polar angles' sine and cosine.
+/// the rotation by θ_from − θ_to, as its (cosine, sine), from the directions' sines and
+/// cosines without trigonometry. Its matrix, columns (c, 0, −s), (0, 1, 0), (s, 0, c), equals
+/// `DQuat::from_rotation_arc` of the two mirrors (a test says so), at a fraction of its cost:
+/// it runs for every neighbour of every `sample` and `pdf`. Both are unit vectors (to
+/// rounding): their x and z are their polar angles' sine and cosine.
 #[inline]
-fn rotation_between_mirrors_xz(from: DVec3, to: DVec3) -> DMat3 {
+fn rotation_between_mirrors_xz(from: DVec3, to: DVec3) -> (f64, f64) {
     let (sf, cf) = (from.x, from.z);
     let (st, ct) = (to.x, to.z);
-    let (ca, sa) = (cf * ct + sf * st, sf * ct - cf * st);
-    DMat3::from_cols(DVec3::new(ca, 0.0, -sa), DVec3::Y, DVec3::new(sa, 0.0, ca))
+    (cf * ct + sf * st, sf * ct - cf * st)
 }
 
-/// One grid tree's warp proxy: per node, the first child (or [`WARP_LEAF`]) and its share of
-/// the tree's volume (f32). 8 bytes a node.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[repr(C)]
-pub(crate) struct WarpNode {
-    pub(crate) link: u32,
-    pub(crate) q: f32,
-}
-
-/// Marks a warp leaf.
-pub(crate) const WARP_LEAF: u32 = u32::MAX;
-
-/// The warp proxy of one tree (see the module doc).
-#[derive(Clone, Debug, PartialEq)]
-pub(crate) struct WarpTable {
-    pub(crate) nodes: Vec<WarpNode>,
-}
-
-/// Chooses part 0 or 1 with probabilities ∝ (a, b) using `u`, and rescales `u` to [0, 1)
-/// within the chosen part.
+/// R_z(φ)·R_y(α) from (cos φ, sin φ) and (cos α, sin α), written out: an isotropic
+/// neighbour's map from its tree's frame to the local frame (the rotation between the
+/// mirrors, then the unfolding rotation about z). Equal to the product of the two matrices
+/// (a test says so) at a quarter of its multiplications.
 #[inline]
-fn split(u: &mut f64, a: f64, b: f64) -> usize {
-    let pa = a / (a + b);
-    if *u < pa {
-        *u = (*u / pa).min(1.0 - f64::EPSILON);
-        0
-    } else {
-        *u = ((*u - pa) / (1.0 - pa)).clamp(0.0, 1.0 - f64::EPSILON);
-        1
-    }
-}
-
-impl WarpTable {
-    fn new(tree: &Quadtree) -> Self {
-        let v = tree.volume();
-        let nodes = tree
-            .nodes()
-            .iter()
-            .map(|n| WarpNode {
-                link: if n.is_leaf() {
-                    WARP_LEAF
-                } else {
-                    n.first_child
-                },
-                q: if v > 0.0 { (n.v1 / v) as f32 } else { 0.0 },
-            })
-            .collect();
-        Self { nodes }
-    }
-
-    /// Rebuilds a table from raw nodes, checking its shape (children after parents, in
-    /// range, one parent each) and that every share is finite and ≥ 0.
-    pub(crate) fn from_raw(nodes: Vec<WarpNode>) -> Result<Self, &'static str> {
-        let n = nodes.len();
-        if n == 0 {
-            return Err("a warp table with no nodes");
-        }
-        let mut seen = alloc::vec![false; n];
-        for (i, w) in nodes.iter().enumerate() {
-            if !(w.q.is_finite() && w.q >= 0.0) {
-                return Err("a warp share that is negative or not finite");
-            }
-            if w.link != WARP_LEAF {
-                let c = w.link as usize;
-                if c <= i || c.checked_add(4).is_none_or(|e| e > n) {
-                    return Err("a warp node whose children are out of order or range");
-                }
-                for s in &mut seen[c..c + 4] {
-                    if *s {
-                        return Err("a warp node with two parents");
-                    }
-                    *s = true;
-                }
-            }
-        }
-        if seen[0] || seen[1..].iter().any(|&s| !s) {
-            return Err("warp nodes that are not one tree");
-        }
-        Ok(Self { nodes })
-    }
-
-    /// The four children's shares of node `i` (in f64) and their sum.
-    #[inline]
-    fn shares(&self, c: usize) -> ([f64; 4], f64) {
-        let q = [0, 1, 2, 3].map(|k| f64::from(self.nodes[c + k].q));
-        (q, q[0] + q[1] + q[2] + q[3])
-    }
-
-    /// Hierarchical warping: [0,1)² → a square point and the proxy's density there, per
-    /// unit square area. Column then row of the children by rescaling u.x then u.y, so the
-    /// probability of child k is q_k / Σq, the same product [`WarpTable::density`] forms.
-    fn warp(&self, u: DVec2) -> Option<(DVec2, f64)> {
-        let mut u = u.clamp(DVec2::ZERO, DVec2::splat(1.0 - f64::EPSILON));
-        let (mut i, mut min, mut size, mut prob) = (0usize, DVec2::splat(-1.0), 2.0f64, 1.0f64);
-        if self.nodes[0].q <= 0.0 {
-            return None;
-        }
-        while self.nodes[i].link != WARP_LEAF {
-            let c = self.nodes[i].link as usize;
-            let (q, total) = self.shares(c);
-            if total <= 0.0 {
-                return None;
-            }
-            let col = split(&mut u.x, q[0] + q[2], q[1] + q[3]);
-            let row = split(&mut u.y, q[col], q[col + 2]);
-            let k = col + 2 * row;
-            prob *= q[k] / total;
-            size *= 0.5;
-            min += DVec2::new((k & 1) as f64, (k >> 1) as f64) * size;
-            i = c + k;
-        }
-        (prob > 0.0).then(|| (min + u * size, prob / (size * size)))
-    }
-
-    /// The proxy's density at square point `p`, per unit square area (0 outside the square
-    /// or where no volume is).
-    fn density(&self, p: DVec2) -> f64 {
-        if !(p.x >= -1.0 && p.x <= 1.0 && p.y >= -1.0 && p.y <= 1.0) || self.nodes[0].q <= 0.0 {
-            return 0.0;
-        }
-        let (mut i, mut min, mut size, mut prob) = (0usize, DVec2::splat(-1.0), 2.0f64, 1.0f64);
-        while self.nodes[i].link != WARP_LEAF {
-            let c = self.nodes[i].link as usize;
-            let (q, total) = self.shares(c);
-            if total <= 0.0 {
-                return 0.0;
-            }
-            size *= 0.5;
-            let col = usize::from(p.x >= min.x + size);
-            let row = usize::from(p.y >= min.y + size);
-            let k = col + 2 * row;
-            prob *= q[k] / total;
-            min += DVec2::new(col as f64, row as f64) * size;
-            i = c + k;
-        }
-        prob / (size * size)
-    }
+fn isotropic_to_local((c, s): (f64, f64), (ca, sa): (f64, f64)) -> DMat3 {
+    DMat3::from_cols(
+        DVec3::new(c * ca, s * ca, -sa),
+        DVec3::new(-s, c, 0.0),
+        DVec3::new(c * sa, s * sa, ca),
+    )
 }
 
 /// One grid tree: its direction, rejection layout and warp proxy.
@@ -636,22 +513,33 @@ pub(crate) struct Slice {
     pub(crate) wi: Vec3,
     pub(crate) tree: PackedTree,
     pub(crate) warp: WarpTable,
+    /// J/V: the rejection density per unit solid angle is Y(f)·cos θ·this.
+    rejection_scale: f64,
+    /// J: the warp density per unit solid angle is the table's (per square area)·cos θ·this.
+    warp_scale: f64,
 }
 
 impl Slice {
     fn build(table: &dyn Brdf, wi: Vec3, config: BuildConfig) -> Result<Self, BuildError> {
         let q = Quadtree::from_unit(table, wi, config)?;
-        Ok(Self {
+        Ok(Self::new(wi, PackedTree::new(&q), WarpTable::new(&q)))
+    }
+
+    /// A slice from its parts (a bake's, or a file's), with its pdf scales.
+    pub(crate) fn new(wi: Vec3, tree: PackedTree, warp: WarpTable) -> Self {
+        let j = f64::from(tree.map().square_area_per_projected_solid_angle());
+        let v = tree.volume();
+        Self {
             wi,
-            tree: PackedTree::new(&q),
-            warp: WarpTable::new(&q),
-        })
+            rejection_scale: if v > 0.0 { j / v } else { 0.0 },
+            warp_scale: j,
+            tree,
+            warp,
+        }
     }
 
     fn bytes(&self) -> usize {
-        core::mem::size_of_val(self.tree.nodes())
-            + core::mem::size_of_val(self.warp.nodes.as_slice())
-            + core::mem::size_of::<Self>()
+        core::mem::size_of_val(self.tree.nodes()) + self.warp.bytes() + core::mem::size_of::<Self>()
     }
 }
 
@@ -925,10 +813,6 @@ impl BakedSampler {
     #[inline(always)]
     fn components(&self, tables: &Tables, given: Vec3) -> ([Component; 4], usize) {
         let g = given.as_dvec3();
-        let fold = self.grid.domain.fold(g);
-        let gc = fold * g;
-        let mc = DVec3::new(-gc.x, -gc.y, gc.z);
-        let unfold = fold.transpose();
         let mut out = [Component {
             slice: 0,
             weight: 0.0,
@@ -936,55 +820,101 @@ impl BakedSampler {
         }; 4];
         let mut n = 0;
         let mut sum = 0.0;
-        for (slice, w) in self.grid.neighbours(gc) {
-            if w <= 0.0 || tables.slices[slice].tree.volume() <= 0.0 {
-                continue;
-            }
-            if let Some(c) = out[..n].iter_mut().find(|c| c.slice == slice) {
-                c.weight += w;
-                sum += w;
-                continue;
-            }
-            let wk = tables.slices[slice].wi.as_dvec3();
-            let rot = if self.grid.domain == PhiDomain::Rotation {
-                rotation_between_mirrors_xz(wk, gc)
+        if self.grid.domain == PhiDomain::Rotation {
+            // Fold by the rotation about z by −φ (from cos φ and sin φ without trigonometry)
+            // onto (sin θ, 0, cos θ); each neighbour's map to the local frame is the rotation
+            // about y between the two mirrors, then about z back by φ, written out.
+            let r = m::sqrt(g.x * g.x + g.y * g.y);
+            let (c, s) = if r > 0.0 {
+                let inv = 1.0 / r;
+                (g.x * inv, g.y * inv)
             } else {
+                (1.0, 0.0)
+            };
+            let gc = DVec3::new(r, 0.0, g.z);
+            for (slice, w) in self.grid.neighbours(gc) {
+                if w <= 0.0 || tables.slices[slice].tree.volume() <= 0.0 {
+                    continue;
+                }
+                if let Some(c) = out[..n].iter_mut().find(|c| c.slice == slice) {
+                    c.weight += w;
+                    sum += w;
+                    continue;
+                }
+                let wk = tables.slices[slice].wi.as_dvec3();
+                out[n] = Component {
+                    slice,
+                    weight: w,
+                    to_local: isotropic_to_local((c, s), rotation_between_mirrors_xz(wk, gc)),
+                };
+                n += 1;
+                sum += w;
+            }
+        } else {
+            let fold = self.grid.domain.fold(g);
+            let gc = fold * g;
+            let mc = DVec3::new(-gc.x, -gc.y, gc.z).normalize();
+            let unfold = fold.transpose();
+            for (slice, w) in self.grid.neighbours(gc) {
+                if w <= 0.0 || tables.slices[slice].tree.volume() <= 0.0 {
+                    continue;
+                }
+                if let Some(c) = out[..n].iter_mut().find(|c| c.slice == slice) {
+                    c.weight += w;
+                    sum += w;
+                    continue;
+                }
+                let wk = tables.slices[slice].wi.as_dvec3();
                 let mk = DVec3::new(-wk.x, -wk.y, wk.z).normalize();
-                DMat3::from_quat(DQuat::from_rotation_arc(mk, mc.normalize()))
-            };
-            out[n] = Component {
-                slice,
-                weight: w,
-                to_local: unfold * rot,
-            };
-            n += 1;
-            sum += w;
+                out[n] = Component {
+                    slice,
+                    weight: w,
+                    to_local: unfold * DMat3::from_quat(DQuat::from_rotation_arc(mk, mc)),
+                };
+                n += 1;
+                sum += w;
+            }
         }
-        for c in &mut out[..n] {
-            c.weight /= sum;
+        if sum != 1.0 && n > 0 {
+            let inv = 1.0 / sum;
+            for c in &mut out[..n] {
+                c.weight *= inv;
+            }
         }
         (out, n)
     }
 
-    /// Component `c`'s density at local `wo`, per unit solid angle.
+    /// Component `c`'s density at local `wo`, per unit solid angle. `leaf`: the warp leaf the
+    /// sample being scored was drawn in, when `c` is the component that drew it — its density
+    /// is the one [`WarpTable::density`] would find wherever `wo` maps back into that leaf
+    /// (the same stored number), so only a point that rounding moved out of it descends.
     #[inline]
-    fn component_pdf(&self, tables: &Tables, adjoint: bool, c: &Component, wo: DVec3) -> f64 {
+    fn component_pdf(
+        &self,
+        tables: &Tables,
+        adjoint: bool,
+        c: &Component,
+        wo: DVec3,
+        leaf: Option<&WarpLeaf>,
+    ) -> f64 {
         let w = c.to_local.transpose() * wo;
         if w.z <= 0.0 {
             return 0.0;
         }
         let s = &tables.slices[c.slice];
-        let map = s.tree.map();
-        let j = f64::from(map.square_area_per_projected_solid_angle());
         let wf = w.as_vec3();
         match self.mode {
             BakedMode::Rejection => {
                 let y = f64::from(luminance(self.table_eval(adjoint, s.wi, wf)));
-                y * w.z * j / s.tree.volume()
+                y * w.z * s.rejection_scale
             }
             BakedMode::Warp => {
-                let p = map.direction_to_square(wf).as_dvec2();
-                s.warp.density(p) * j * w.z
+                let p = s.tree.map().direction_to_square(wf).as_dvec2();
+                let d = match leaf {
+                    Some(l) if l.contains(p) => l.density,
+                    _ => s.warp.density(p),
+                };
+                d * s.warp_scale * w.z
             }
         }
     }
@@ -996,12 +926,20 @@ impl BakedSampler {
     fn pdf_unit(&self, role: Role, given: Vec3, sampled: Vec3) -> f32 {
         let (tables, adjoint) = self.tables_for(role);
         let (comps, n) = self.components(tables, given);
-        self.pdf_of(tables, adjoint, &comps[..n], sampled)
+        self.pdf_of(tables, adjoint, &comps[..n], sampled, None)
     }
 
     /// The mixture's density at `sampled` from its components (the one expression behind
-    /// `pdf` and the pdf a sample carries).
-    fn pdf_of(&self, tables: &Tables, adjoint: bool, comps: &[Component], sampled: Vec3) -> f32 {
+    /// `pdf` and the pdf a sample carries; `drawn`: the component and warp leaf a sample
+    /// came from, which changes how its density is found, never its value).
+    fn pdf_of(
+        &self,
+        tables: &Tables,
+        adjoint: bool,
+        comps: &[Component],
+        sampled: Vec3,
+        drawn: Option<(usize, WarpLeaf)>,
+    ) -> f32 {
         let n = comps.len();
         let wo = sampled.as_dvec3().normalize_or_zero();
         // (NaN fails too: normalize_or_zero gives 0 for it.)
@@ -1010,8 +948,9 @@ impl BakedSampler {
         }
         let delta = if n == 0 { 1.0 } else { self.config.defensive };
         let mut p = delta * wo.z * core::f64::consts::FRAC_1_PI;
-        for c in &comps[..n] {
-            p += (1.0 - delta) * c.weight * self.component_pdf(tables, adjoint, c, wo);
+        for (k, c) in comps[..n].iter().enumerate() {
+            let leaf = drawn.as_ref().filter(|d| d.0 == k).map(|d| &d.1);
+            p += (1.0 - delta) * c.weight * self.component_pdf(tables, adjoint, c, wo, leaf);
         }
         p as f32
     }
@@ -1059,19 +998,21 @@ impl BakedSampler {
         let delta = if n == 0 { 1.0 } else { self.config.defensive };
         let uc = f64::from(uc.clamp(0.0, 1.0));
         let mut trials = 1;
+        let mut drawn = None;
         let wo = if uc < delta || n == 0 {
             sample_cosine_hemisphere(u)
         } else {
             let mut x = (uc - delta) / (1.0 - delta);
-            let mut pick = &comps[n - 1];
-            for c in &comps[..n] {
+            let mut pick = n - 1;
+            for (k, c) in comps[..n].iter().enumerate() {
                 if x < c.weight {
-                    pick = c;
+                    pick = k;
                     break;
                 }
                 x -= c.weight;
             }
-            let s = &tables.slices[pick.slice];
+            let c = &comps[pick];
+            let s = &tables.slices[c.slice];
             let w = match self.mode {
                 BakedMode::Rejection => {
                     let leaf = s.tree.select(crate::sampler::descent_uniform(u));
@@ -1089,16 +1030,17 @@ impl BakedSampler {
                     w.as_dvec3()
                 }
                 BakedMode::Warp => {
-                    let (p, _) = s.warp.warp(u.as_dvec2())?;
+                    let (p, leaf) = s.warp.warp(u.as_dvec2())?;
+                    drawn = Some((pick, leaf));
                     square_direction(s.tree.map(), p)?
                 }
             };
-            (pick.to_local * w).as_vec3().normalize_or_zero()
+            (c.to_local * w).as_vec3().normalize_or_zero()
         };
         if !above_horizon(wo) {
             return None;
         }
-        let pdf = self.pdf_of(tables, adjoint, &comps[..n], wo);
+        let pdf = self.pdf_of(tables, adjoint, &comps[..n], wo, drawn);
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
@@ -1298,7 +1240,7 @@ impl BrokenPdf {
         for c in &mut comps[1..n] {
             c.weight /= rest;
         }
-        b.pdf_of(&b.forward, false, &comps[1..n], wo)
+        b.pdf_of(&b.forward, false, &comps[1..n], wo, None)
     }
 
     /// The sampler at one wi with the wrong pdf.
@@ -1432,10 +1374,26 @@ mod tests {
             let to = DVec3::new(b.sin(), 0.0, b.cos());
             let m = |w: DVec3| DVec3::new(-w.x, -w.y, w.z);
             let arc = DMat3::from_quat(DQuat::from_rotation_arc(m(from), m(to)));
-            let fast = rotation_between_mirrors_xz(from, to);
+            let (ca, sa) = rotation_between_mirrors_xz(from, to);
+            let fast =
+                DMat3::from_cols(DVec3::new(ca, 0.0, -sa), DVec3::Y, DVec3::new(sa, 0.0, ca));
             assert!((fast * m(from) - m(to)).length() < 1e-12);
             for v in [DVec3::X, DVec3::Y, DVec3::Z, DVec3::new(0.3, -0.4, 0.866)] {
                 assert!((arc * v - fast * v).length() < 1e-12, "{a} {b} {v}");
+            }
+            // The isotropic neighbour's map is the unfolding (the fold's transpose) after it
+            // (at θ = 0 the fold is the identity, and so φ is 0).
+            let phis: &[f64] = if to.x > 0.0 {
+                &[0.0, 0.4, 2.0, -1.3, 3.1]
+            } else {
+                &[0.0]
+            };
+            for &phi in phis {
+                let g = DVec3::new(phi.cos() * to.x, phi.sin() * to.x, to.z);
+                let unfold = PhiDomain::Rotation.fold(g).transpose();
+                let d = unfold * fast - isotropic_to_local((phi.cos(), phi.sin()), (ca, sa));
+                let err = d.x_axis.length() + d.y_axis.length() + d.z_axis.length();
+                assert!(err < 1e-12, "{a} {b} {phi}: {err}");
             }
         }
     }

@@ -77,6 +77,7 @@ mod table;
 mod tree;
 pub mod validate;
 mod warp;
+mod warp_table;
 
 pub use bake_file::{BAKE_FORMAT_VERSION, BAKE_MAGIC, BakeFileError};
 #[cfg(feature = "std")]

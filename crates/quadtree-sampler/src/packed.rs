@@ -7,8 +7,10 @@
 //! - a node's square is implicit: the root is [−1,1]², child k of a square takes its
 //!   quadrant k ((−,−), (+,−), (−,+), (+,+)), computed exactly in f64 on the way down;
 //! - a leaf's proposal box is a pure function of its square and its chart
-//!   ([`Proposal::for_node`]), recomputed for the rim leaves (the only ones whose box is not
-//!   their square) after the descent, once per sample;
+//!   ([`Proposal::for_node`]): the square itself, or for a rim leaf (the only ones whose box
+//!   is not their square) a box in angle or sine coordinates, which costs a handful of
+//!   inverse sines to find — those are found once, when the tree is packed or read, and kept
+//!   beside the nodes (40 bytes per rim leaf), so a sample never recomputes them;
 //! - selection is an inverse-CDF lookup: the unit interval, in 2³¹ fixed-point units, is
 //!   cut into one interval per leaf, of width ∝ its v1, in tree order; an inner node stores
 //!   where its children 1, 2 and 3 start. One 31-bit uniform descends with three integer
@@ -45,7 +47,8 @@ const ONE: u32 = 1 << 31;
 /// a uniform x ∈ [0, 2³¹) in the node's interval goes to child
 /// k = [x ≥ s₁] + [x ≥ s₂] + [x ≥ s₃]. Leaf: `link` is `LEAF_FLAG` | `LIVE_FLAG` when
 /// v1 > 0 | chart, and `data` holds the bits of M (f32, rounded up, so it still bounds), of
-/// v1 (f32, for inspection only) and 0.
+/// v1 (f32, for inspection only) and, for a rim leaf, its entry in the tree's table of
+/// proposal boxes (0 otherwise; 0 in bake files, where the table is rebuilt on reading).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(C, align(16))]
 pub struct PackedNode {
@@ -107,6 +110,8 @@ pub struct Selected {
 #[derive(Clone, Debug, PartialEq)]
 pub struct PackedTree {
     nodes: Vec<PackedNode>,
+    /// The proposal boxes of the rim leaves (non-square charts), in tree order.
+    rim: Vec<Proposal>,
     map: DiskMap,
     volume: f64,
     stats: TreeStats,
@@ -214,12 +219,43 @@ impl PackedTree {
             .collect::<Vec<_>>();
         let mut packed = Self {
             nodes,
+            rim: Vec::new(),
             map: tree.map(),
             volume: tree.volume(),
             stats: tree.stats(),
         };
+        packed.index_rim();
         packed.restat();
         packed
+    }
+
+    /// Finds every rim leaf's proposal box (exactly what [`Proposal::in_chart`] gives for
+    /// its square, which the descent computes to the same bits: squares are dyadic) and
+    /// points the leaf at it.
+    fn index_rim(&mut self) {
+        self.rim.clear();
+        let mut squares = alloc::vec![(-1.0f64, -1.0f64, 2.0f64); self.nodes.len()];
+        for i in 0..self.nodes.len() {
+            let (x, y, size) = squares[i];
+            let n = self.nodes[i];
+            if n.is_leaf() {
+                let chart = n.chart();
+                self.nodes[i].data[2] = if chart == Chart::Square {
+                    0
+                } else {
+                    self.rim
+                        .push(Proposal::in_chart(&Rect::square(x, y, size), chart));
+                    (self.rim.len() - 1) as u32
+                };
+            } else {
+                let (c, h) = (n.link as usize, 0.5 * size);
+                for k in 0..4 {
+                    let dx = if k & 1 == 1 { h } else { 0.0 };
+                    let dy = if k >> 1 == 1 { h } else { 0.0 };
+                    squares[c + k] = (x + dx, y + dy, h);
+                }
+            }
+        }
     }
 
     /// E\[T\] and bytes as sampled: with the f32 bounds and the packed size.
@@ -232,7 +268,8 @@ impl PackedTree {
             }
         }
         self.stats.expected_trials = if v1s > 0.0 { boxes / v1s } else { 0.0 };
-        self.stats.bytes = self.nodes.len() * core::mem::size_of::<PackedNode>();
+        self.stats.bytes = core::mem::size_of_val(self.nodes.as_slice())
+            + core::mem::size_of_val(self.rim.as_slice());
     }
 
     /// The nodes, root first.
@@ -322,7 +359,11 @@ impl PackedTree {
     pub fn proposal(&self, leaf: &Selected) -> (Proposal, f64) {
         let n = self.nodes[leaf.index];
         let chart = n.chart();
-        let prop = Proposal::in_chart(&leaf.rect, chart);
+        let prop = if chart == Chart::Square {
+            Proposal::in_chart(&leaf.rect, chart)
+        } else {
+            self.rim[n.data[2] as usize]
+        };
         (
             prop,
             if n.is_live_leaf() {
@@ -401,7 +442,10 @@ impl PackedTree {
     pub(crate) fn raw_nodes(&self) -> Vec<[u32; 4]> {
         self.nodes
             .iter()
-            .map(|n| [n.link, n.data[0], n.data[1], n.data[2]])
+            .map(|n| {
+                let rim = if n.is_leaf() { 0 } else { n.data[2] };
+                [n.link, n.data[0], n.data[1], rim]
+            })
             .collect()
     }
 
@@ -481,10 +525,12 @@ impl PackedTree {
             .collect();
         let mut packed = Self {
             nodes,
+            rim: Vec::new(),
             map,
             volume,
             stats: TreeStats::default(),
         };
+        packed.index_rim();
         packed.stats = Quadtree::from_parts(packed.unpacked_nodes(), map, budget_exhausted).stats();
         packed.restat();
         Ok(packed)

@@ -1,0 +1,99 @@
+//! The baked sampler (SPEC §7) as a renderer calls it: a new incident direction for every
+//! call (cosine-distributed, drawn before the clock starts), against the Beckmann analytic
+//! sample that #18's goals are stated in (cook-torrance m = 0.1, at the bench's fixed wi).
+//! Rows per set: `sample` in rejection and warp mode and `pdf(wi, wo)` in both modes, on
+//! batches of 1024 calls. Ratios come from one run: `cargo bench --bench baked`.
+
+#[macro_use]
+mod common;
+
+use brdf_sampling::glam::{Vec2, Vec3};
+use brdf_sampling::quadtree_sampler::{
+    AnySampler, BakeConfig, BakedMode, BakedSampler, BuildConfig, DirectionSampler, SamplerMode,
+    uniform_f32,
+};
+use brdf_sampling::warp::sample_cosine_hemisphere;
+use criterion::{BenchmarkId, Criterion, Throughput};
+use rand_core::SeedableRng;
+use std::hint::black_box;
+use std::sync::Arc;
+
+const BATCH: usize = 1024;
+
+/// The sets the speed goals name (the cheap models), plus Lambert as the floor.
+const BAKED_SETS: &[&str] = &[
+    "lambert",
+    "phong-sharp",
+    "cook-torrance-sharp",
+    "ward-sharp",
+];
+
+fn bench(c: &mut Criterion) {
+    let beckmann = common::model("cook-torrance", &["m=0.1"]);
+    let analytic = AnySampler::new(
+        &*beckmann,
+        common::wi(),
+        SamplerMode::Analytic,
+        BuildConfig::default(),
+    )
+    .unwrap();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+    let inputs: Vec<(Vec3, f32, Vec2)> = (0..BATCH)
+        .map(|_| {
+            let wi =
+                sample_cosine_hemisphere(Vec2::new(uniform_f32(&mut rng), uniform_f32(&mut rng)));
+            let u = Vec2::new(uniform_f32(&mut rng), uniform_f32(&mut rng));
+            (wi, uniform_f32(&mut rng), u)
+        })
+        .collect();
+    let mut group = c.benchmark_group("baked/beckmann");
+    group.throughput(Throughput::Elements(BATCH as u64));
+    group.bench_function("analytic", |b| {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        b.iter(|| {
+            for _ in 0..BATCH {
+                black_box(analytic.sample(&mut rng));
+            }
+        });
+    });
+    group.finish();
+    for &(label, name, params) in common::SETS {
+        if !BAKED_SETS.contains(&label) {
+            continue;
+        }
+        let brdf: Arc<dyn brdf_sampling::Brdf> = common::model(name, params).into();
+        let rejection = BakedSampler::new(brdf, BakeConfig::default()).unwrap();
+        let warp = BakedSampler::from_bytes(&rejection.to_bytes())
+            .unwrap()
+            .with_mode(BakedMode::Warp);
+        let mut group = c.benchmark_group(format!("baked/{label}"));
+        group.throughput(Throughput::Elements(BATCH as u64));
+        for (kind, baked) in [("rejection", &rejection), ("warp", &warp)] {
+            let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+            group.bench_function(BenchmarkId::new("sample", kind), |b| {
+                b.iter(|| {
+                    for &(wi, uc, u) in &inputs {
+                        black_box(baked.sample(wi, uc, u, &mut rng).ok());
+                    }
+                });
+            });
+            let pairs: Vec<(Vec3, Vec3)> = inputs
+                .iter()
+                .filter_map(|&(wi, uc, u)| {
+                    let s = baked.sample(wi, uc, u, &mut rng).ok()??;
+                    Some((wi, s.wo))
+                })
+                .collect();
+            group.bench_function(BenchmarkId::new("pdf", kind), |b| {
+                b.iter(|| {
+                    for &(wi, wo) in &pairs {
+                        black_box(baked.pdf(wi, wo).ok());
+                    }
+                });
+            });
+        }
+        group.finish();
+    }
+}
+
+bench_main!(bench);

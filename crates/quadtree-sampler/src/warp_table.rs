@@ -1,0 +1,423 @@
+//! The baked sampler's warp proxy of one grid tree: the tree's leaves, each holding its share
+//! of the volume spread uniformly over its square, sampled by hierarchical warping (a
+//! deterministic, stratification-preserving map of [0,1)²) and looked up by point location.
+//!
+//! ## Layout
+//! Each node's share q of the tree's volume (f32) is what bake files store; the sampling
+//! layout is derived from the shares when the table is made (so a table read from a file is
+//! the table that was baked). A node of it is 16 bytes, everything one level of the warp
+//! needs in one load:
+//! - `link` — the first child, or [`WARP_LEAF`];
+//! - `data` — of a branch: the probability of its left column (children 0 and 2; the child
+//!   order is (−,−), (+,−), (−,+), (+,+)) in 32-bit fixed point; of a leaf: **its density**
+//!   (f32 bits), the product of the probabilities of the choices that reach it over its
+//!   square's area (per unit square area);
+//! - `rows` — of a branch: the probability of the lower row within the left and within the
+//!   right column (fixed point).
+//!
+//! ## Warp and look-up
+//! The warp keeps the interval of each coordinate of u that the choices so far leave, in
+//! 63-bit fixed point, and chooses a column with `u.x` and a row with `u.y` at every level
+//! by comparing against the cut ⌊w·p⌋ of that interval: an integer multiply, an add and a
+//! compare per level, no division and no branch (the choices are coin flips no branch
+//! predictor learns). At the leaf, `u` maps affinely into its square. The probability of
+//! reaching a leaf is the product of the split probabilities up to the cuts' rounding,
+//! 2⁻⁶³ of the whole interval per cut (relative 10⁻¹⁰ for a node reached with probability
+//! 10⁻⁹), and that product over the leaf's area is the stored density. The look-up
+//! ([`WarpTable::density`]) reads the tree's at most 30 levels of midpoints as the bits of
+//! the point's fixed-point coordinates, so it is loads alone. Both return the leaf's one
+//! stored number, so the density a sample carries and the density of its point asked for
+//! later are the same value ([`WarpLeaf::contains`] says when a point is still in the leaf).
+
+use alloc::vec::Vec;
+use glam::DVec2;
+
+/// Marks a warp leaf.
+pub(crate) const WARP_LEAF: u32 = u32::MAX;
+
+/// One node of a [`WarpTable`]'s sampling layout (see the module doc).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(16))]
+struct WarpNode {
+    /// First child, or [`WARP_LEAF`].
+    link: u32,
+    /// A branch's probability of its left column (× 2³²); a leaf's density per unit square
+    /// area (f32 bits).
+    data: u32,
+    /// A branch's probabilities of the lower row in its left and right column (× 2³²).
+    rows: [u32; 2],
+}
+
+/// The leaf a warp reached: its square (min corner, side) and density per unit square area.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct WarpLeaf {
+    pub(crate) index: usize,
+    pub(crate) min: DVec2,
+    pub(crate) size: f64,
+    pub(crate) density: f64,
+}
+
+impl WarpLeaf {
+    /// Whether square point `p` is in this leaf's half-open square [min, min + size)², the
+    /// squares [`WarpTable::density`]'s descent separates (its cuts are `p ≥ mid`; squares,
+    /// corners and midpoints are dyadic, so the two agree exactly).
+    #[inline]
+    pub(crate) fn contains(&self, p: DVec2) -> bool {
+        p.x >= self.min.x
+            && p.y >= self.min.y
+            && p.x < self.min.x + self.size
+            && p.y < self.min.y + self.size
+    }
+}
+
+/// The warp proxy of one tree (see the module doc).
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct WarpTable {
+    nodes: Vec<WarpNode>,
+    /// Each node's share of the tree's volume: the stored form.
+    shares: Vec<f32>,
+}
+
+impl WarpTable {
+    /// The proxy of a built tree: each node's share of its volume.
+    pub(crate) fn new(tree: &crate::tree::Quadtree) -> Self {
+        let v = tree.volume();
+        let shares = tree
+            .nodes()
+            .iter()
+            .map(|n| {
+                let link = if n.is_leaf() {
+                    WARP_LEAF
+                } else {
+                    n.first_child
+                };
+                (link, if v > 0.0 { (n.v1 / v) as f32 } else { 0.0 })
+            })
+            .collect();
+        Self::derived(shares)
+    }
+
+    /// Rebuilds a table from its stored (first child, share) pairs, checking its shape
+    /// (children after parents, in range, one parent each) and that every share is finite
+    /// and ≥ 0.
+    pub(crate) fn from_raw(shares: Vec<(u32, f32)>) -> Result<Self, &'static str> {
+        let n = shares.len();
+        if n == 0 {
+            return Err("a warp table with no nodes");
+        }
+        let mut seen = alloc::vec![false; n];
+        let mut depth = alloc::vec![0u32; n];
+        for (i, &(link, q)) in shares.iter().enumerate() {
+            if !(q.is_finite() && q >= 0.0) {
+                return Err("a warp share that is negative or not finite");
+            }
+            if link != WARP_LEAF {
+                let c = link as usize;
+                if c <= i || c.checked_add(4).is_none_or(|e| e > n) {
+                    return Err("a warp node whose children are out of order or range");
+                }
+                if depth[i] >= MAX_DEPTH {
+                    return Err("a warp table deeper than 30 levels");
+                }
+                for s in &mut seen[c..c + 4] {
+                    if *s {
+                        return Err("a warp node with two parents");
+                    }
+                    *s = true;
+                }
+                let d = depth[i] + 1;
+                depth[c..c + 4].fill(d);
+            }
+        }
+        if seen[0] || seen[1..].iter().any(|&s| !s) {
+            return Err("warp nodes that are not one tree");
+        }
+        Ok(Self::derived(shares))
+    }
+
+    /// The stored form: (first child, share) per node.
+    pub(crate) fn shares(&self) -> impl Iterator<Item = (u32, f32)> + '_ {
+        self.nodes
+            .iter()
+            .zip(&self.shares)
+            .map(|(n, &q)| (n.link, q))
+    }
+
+    /// Number of nodes.
+    pub(crate) fn len(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Whether node `i` is a leaf.
+    pub(crate) fn is_leaf(&self, i: usize) -> bool {
+        self.nodes[i].link == WARP_LEAF
+    }
+
+    /// Bytes held by the nodes.
+    pub(crate) fn bytes(&self) -> usize {
+        core::mem::size_of_val(self.nodes.as_slice())
+            + core::mem::size_of_val(self.shares.as_slice())
+    }
+
+    /// The derived fields from the shares of a checked shape (parents before children).
+    fn derived(shares: Vec<(u32, f32)>) -> Self {
+        let mut nodes: Vec<WarpNode> = shares
+            .iter()
+            .map(|&(link, _)| WarpNode {
+                link,
+                data: 0,
+                rows: [0; 2],
+            })
+            .collect();
+        let shares: Vec<f32> = shares.into_iter().map(|(_, q)| q).collect();
+        // The probability of reaching each node, from the fixed-point split probabilities the
+        // warp uses (so a leaf's density is what the warp's choices give it, to f32).
+        let mut prob = alloc::vec![0.0f64; nodes.len()];
+        let mut area = alloc::vec![4.0f64; nodes.len()];
+        prob[0] = if shares[0] > 0.0 { 1.0 } else { 0.0 };
+        for i in 0..nodes.len() {
+            let link = nodes[i].link;
+            if link == WARP_LEAF {
+                nodes[i].data = ((prob[i] / area[i]) as f32).to_bits();
+                continue;
+            }
+            let c = link as usize;
+            let q = [0, 1, 2, 3].map(|k| f64::from(shares[c + k]));
+            let col = fixed_ratio(q[0] + q[2], q[1] + q[3]);
+            let rows = [fixed_ratio(q[0], q[2]), fixed_ratio(q[1], q[3])];
+            nodes[i].data = col;
+            nodes[i].rows = rows;
+            let first = |p: u32| f64::from(p) * ONE_OVER_2_32;
+            let pc = [first(col), 1.0 - first(col)];
+            for k in 0..4 {
+                let (x, y) = (k & 1, k >> 1);
+                let pr = first(rows[x]);
+                let py = if y == 0 { pr } else { 1.0 - pr };
+                // A share of 0 gets an empty interval (or one of 2⁻³² of its parent's, where
+                // the other side of the split is all: the warp then returns `None`).
+                prob[c + k] = if q[k] > 0.0 {
+                    prob[i] * pc[x] * py
+                } else {
+                    0.0
+                };
+                area[c + k] = area[i] * 0.25;
+            }
+        }
+        Self { nodes, shares }
+    }
+
+    /// Hierarchical warping: [0,1)² → a square point and the leaf it lies in (with the
+    /// proxy's density there, per unit square area). `None` where no volume is.
+    ///
+    /// The open interval of each coordinate of u is kept in 63-bit fixed point, so a level
+    /// costs an integer multiply, an add and a compare on its critical path and no branch
+    /// (the choices are coin flips a predictor cannot learn); the cut of a split of
+    /// probability p in an interval of width w is ⌊w·p⌋, exact to 2⁻⁶³ of the whole.
+    #[inline]
+    pub(crate) fn warp(&self, u: DVec2) -> Option<(DVec2, WarpLeaf)> {
+        const SCALE: f64 = 9_223_372_036_854_775_808.0; // 2⁶³
+        let u = u.clamp(DVec2::ZERO, DVec2::splat(1.0 - f64::EPSILON));
+        let (ux, uy) = ((u.x * SCALE) as u64, (u.y * SCALE) as u64);
+        let (mut lx, mut ly, mut wx, mut wy) = (0u64, 0u64, 1u64 << 63, 1u64 << 63);
+        let (mut i, mut ix, mut iy, mut depth) = (0usize, 0u32, 0u32, 0u32);
+        let cut = |w: u64, p: u32| ((u128::from(w) * u128::from(p)) >> 32) as u64;
+        loop {
+            let n = self.nodes[i];
+            if n.link == WARP_LEAF {
+                let density = f64::from(f32::from_bits(n.data));
+                if !(density > 0.0 && wx > 0 && wy > 0) {
+                    return None;
+                }
+                let size = 2.0 / f64::from(1u32 << depth);
+                let min = DVec2::new(f64::from(ix), f64::from(iy)) * size - 1.0;
+                let t = DVec2::new((ux - lx) as f64 / wx as f64, (uy - ly) as f64 / wy as f64)
+                    .clamp(DVec2::ZERO, DVec2::splat(1.0 - f64::EPSILON));
+                let leaf = WarpLeaf {
+                    index: i,
+                    min,
+                    size,
+                    density,
+                };
+                return Some((min + t * size, leaf));
+            }
+            let cx = cut(wx, n.data);
+            let col = u64::from(ux - lx >= cx);
+            let mask = col.wrapping_neg();
+            lx += cx & mask;
+            wx = ((wx - cx) & mask) | (cx & !mask);
+            // Both rows' cuts are formed before the column is known.
+            let cuts = [cut(wy, n.rows[0]), cut(wy, n.rows[1])];
+            let cy = cuts[col as usize];
+            let row = u64::from(uy - ly >= cy);
+            let mask = row.wrapping_neg();
+            ly += cy & mask;
+            wy = ((wy - cy) & mask) | (cy & !mask);
+            ix = 2 * ix + col as u32;
+            iy = 2 * iy + row as u32;
+            depth += 1;
+            i = n.link as usize + col as usize + 2 * row as usize;
+        }
+    }
+
+    /// The proxy's density at square point `p`, per unit square area (0 outside the square
+    /// or where no volume is).
+    ///
+    /// Trees are at most [`MAX_DEPTH`] deep, so every midpoint the descent compares with is
+    /// a multiple of 2^(1 − MAX_DEPTH): p ≥ mid is a bit of ⌊p·2^(MAX_DEPTH − 1)⌋ (exact:
+    /// scaling by a power of two), and the descent is loads alone.
+    #[inline]
+    pub(crate) fn density(&self, p: DVec2) -> f64 {
+        if !(p.x >= -1.0 && p.x <= 1.0 && p.y >= -1.0 && p.y <= 1.0) {
+            return 0.0;
+        }
+        let half = f64::from(1u32 << (MAX_DEPTH - 1));
+        let top = (1i64 << MAX_DEPTH) - 1;
+        // ⌊p·2^(D−1)⌋ + 2^(D−1) ∈ [0, 2^D]; p = 1 (≥ every midpoint) clamps to all ones.
+        let fixed = |x: f64| {
+            let s = x * half;
+            // ⌊s⌋ without a libm call: truncation, less one where that rounded up.
+            let t = s as i64;
+            let floor = t - i64::from((t as f64) > s);
+            (floor + (1i64 << (MAX_DEPTH - 1))).min(top) as u32
+        };
+        let (kx, ky) = (fixed(p.x), fixed(p.y));
+        let (mut i, mut bit) = (0usize, MAX_DEPTH);
+        loop {
+            let n = self.nodes[i];
+            if n.link == WARP_LEAF {
+                return f64::from(f32::from_bits(n.data));
+            }
+            bit -= 1;
+            let col = (kx >> bit) & 1;
+            let row = (ky >> bit) & 1;
+            i = n.link as usize + col as usize + 2 * row as usize;
+        }
+    }
+}
+
+/// The deepest tree a table can hold (the build's and the bake file's limit).
+const MAX_DEPTH: u32 = 30;
+
+/// 2⁻³².
+const ONE_OVER_2_32: f64 = 1.0 / 4_294_967_296.0;
+
+/// a/(a + b) in 32-bit fixed point (rounded, at most 2³² − 1); ½ for two zeros.
+fn fixed_ratio(a: f64, b: f64) -> u32 {
+    if a + b > 0.0 {
+        (a / (a + b) * 4_294_967_296.0 + 0.5).min(4_294_967_295.0) as u32
+    } else {
+        1 << 31
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A root split once, its child 3 split again, with uneven shares.
+    fn table() -> WarpTable {
+        let mut shares = alloc::vec![(1u32, 1.0f32)];
+        shares.extend([
+            (WARP_LEAF, 0.1),
+            (WARP_LEAF, 0.2),
+            (WARP_LEAF, 0.0),
+            (5, 0.7),
+        ]);
+        shares.extend([
+            (WARP_LEAF, 0.3),
+            (WARP_LEAF, 0.1),
+            (WARP_LEAF, 0.2),
+            (WARP_LEAF, 0.1),
+        ]);
+        WarpTable::from_raw(shares).unwrap()
+    }
+
+    /// Each leaf's stored density is its share over its area, and integrates to 1.
+    #[test]
+    fn leaf_densities_are_shares_over_area() {
+        let t = table();
+        let want = [(1, 0.1, 1.0), (2, 0.2, 1.0), (3, 0.0, 1.0), (5, 0.3, 0.25)];
+        for (i, q, area) in want {
+            let d = f64::from(f32::from_bits(t.nodes[i].data));
+            assert!((d - q / area).abs() < 1e-6, "leaf {i}: {d}");
+        }
+        // Midpoint rule on a fine grid (exact: the density is constant on dyadic squares).
+        let n = 64;
+        let mut sum = 0.0;
+        for a in 0..n {
+            for b in 0..n {
+                let p = DVec2::new(
+                    -1.0 + (a as f64 + 0.5) * 2.0 / n as f64,
+                    -1.0 + (b as f64 + 0.5) * 2.0 / n as f64,
+                );
+                sum += t.density(p) * (2.0 / n as f64) * (2.0 / n as f64);
+            }
+        }
+        assert!((sum - 1.0).abs() < 1e-6, "{sum}");
+    }
+
+    /// The warp's point lies in the leaf it reports, whose density is `density` there; the
+    /// fraction of a uniform grid of u landing in each leaf is its share; an empty leaf is
+    /// never reached.
+    #[test]
+    fn the_warp_lands_in_its_leaf_with_its_share() {
+        let t = table();
+        let n = 400;
+        let mut counts = [0usize; 9];
+        for a in 0..n {
+            for b in 0..n {
+                let u = DVec2::new((a as f64 + 0.5) / n as f64, (b as f64 + 0.5) / n as f64);
+                let (p, leaf) = t.warp(u).expect("volume everywhere but leaf 3");
+                assert!(leaf.contains(p), "{p} outside {leaf:?}");
+                assert_eq!(leaf.density, t.density(p));
+                assert!(t.is_leaf(leaf.index));
+                counts[leaf.index] += 1;
+            }
+        }
+        assert_eq!(counts[3], 0);
+        for (i, q) in [(1, 0.1), (2, 0.2), (5, 0.3), (6, 0.1), (7, 0.2), (8, 0.1)] {
+            let got = counts[i] as f64 / (n * n) as f64;
+            assert!((got - q).abs() < 0.01, "leaf {i}: {got} vs {q}");
+        }
+    }
+
+    /// On a leaf's edges and corners, `contains` holds exactly where the look-up finds that
+    /// leaf: the sampler's shortcut (the drawing leaf's density for a point still in it) and
+    /// the look-up agree to the bit.
+    #[test]
+    fn containment_agrees_with_the_look_up_on_edges() {
+        let t = table();
+        let mut leaves = Vec::new();
+        for a in 0..=20 {
+            for b in 0..=20 {
+                if let Some((_, leaf)) = t.warp(DVec2::new(a as f64 / 20.0, b as f64 / 20.0)) {
+                    leaves.push(leaf);
+                }
+            }
+        }
+        for leaf in leaves {
+            let (lo, hi) = (leaf.min, leaf.min + leaf.size);
+            let xs = [lo.x, hi.x.next_down(), hi.x, lo.x.next_down()];
+            let ys = [lo.y, hi.y.next_down(), hi.y, lo.y.next_down()];
+            for x in xs {
+                for y in ys {
+                    let p = DVec2::new(x, y);
+                    if leaf.contains(p) {
+                        assert_eq!(t.density(p), leaf.density, "{p} in {leaf:?}");
+                    }
+                }
+            }
+            assert!(leaf.contains(lo) && !leaf.contains(hi));
+        }
+    }
+
+    /// Malformed tables are refused.
+    #[test]
+    fn malformed_tables_are_refused() {
+        assert!(WarpTable::from_raw(alloc::vec![]).is_err());
+        assert!(WarpTable::from_raw(alloc::vec![(WARP_LEAF, -1.0)]).is_err());
+        assert!(WarpTable::from_raw(alloc::vec![(WARP_LEAF, f32::NAN)]).is_err());
+        assert!(WarpTable::from_raw(alloc::vec![(0, 1.0)]).is_err());
+        assert!(WarpTable::from_raw(alloc::vec![(1, 1.0), (WARP_LEAF, 1.0)]).is_err());
+    }
+}
