@@ -14,7 +14,9 @@ const SQRT_PI: f64 = 1.772_453_850_905_516;
 /// Above this g the Poisson series is replaced by its second-order expansion (MODELS.md §7).
 pub const HTSG_SERIES_LIMIT: f64 = 300.0;
 
-/// ln of the relative size below which the series' remaining terms are dropped.
+/// ln of the relative size below which the series' remaining terms are dropped (the
+/// log-space series the tests check against).
+#[cfg(test)]
 const LN_REL_TOL: f64 = -36.841_361_487_904_73; // ln(1e-16)
 
 /// ln of the absolute size below which a sum no longer matters: D carries a prefactor of at
@@ -231,12 +233,13 @@ pub fn conductor_fresnel(c: f64, eta: f64, kappa: f64) -> f64 {
 
 /// Σ_{m≥1} g^m e^{−g}/m! · e^{−A/m}/m, the sum in HTSG's D (MODELS.md §7, step 3).
 ///
-/// For g ≤ [`HTSG_SERIES_LIMIT`] the exact series, in log space, from where the Poisson
-/// weights become non-negligible (g − 10√g − 10), with a rigorous stopping rule: past the
-/// Poisson mode every later term is below the Poisson tail, which is bounded geometrically,
-/// and the loop stops once that bound is below 1e-16 of the sum (or below e^−200 absolutely,
-/// where the result no longer shows in f32). Beyond the limit, the second-order expansion
-/// h(g) + (g/2)·h''(g), h(μ) = e^{−A/μ}/μ. 0 when g = 0.
+/// For g ≤ [`HTSG_SERIES_LIMIT`] the exact series, from where the Poisson weights become
+/// non-negligible (g − 10√g − 10), term by term through the ratio of consecutive terms,
+/// r_k = t_{k+1}/t_k = g·k/(k+1)² · e^{A/(k(k+1))}: one exponential a term (the first term
+/// from ln Γ), in linear space with a running scale. r_k falls with k (A ≥ 0), so the terms
+/// rise to one mode and fall, and once r_k < 1 the rest of the series is at most
+/// t_{k+1}/(1 − r_k): the loop stops when that bound is below 1e-16 of the sum. Beyond the
+/// limit, the second-order expansion h(g) + (g/2)·h''(g), h(μ) = e^{−A/μ}/μ. 0 when g = 0.
 #[must_use]
 pub fn htsg_sum(g: f64, a: f64) -> f64 {
     if g.is_nan() || g <= 0.0 || a.is_nan() {
@@ -247,13 +250,52 @@ pub fn htsg_sum(g: f64, a: f64) -> f64 {
         let (g2, g3) = (g * g, g * g * g);
         return e / g + 0.5 * g * e * (2.0 / g3 - 4.0 * a / (g3 * g) + a * a / (g3 * g2));
     }
+    // Terms are kept as t·e^{ln_scale}; the scale moves to the current term whenever a step
+    // would take t above e^RESCALE_LN (a large A can put the mode e^{thousands} above the
+    // start, and a single ratio beyond f64's range).
+    const RESCALE_LN: f64 = 345.387_763_949_107; // ln(1e150)
+    let mut k = m::floor(g - 10.0 * m::sqrt(g) - 10.0).max(1.0);
+    let mut ln_scale = k * m::ln(g) - g - ln_gamma(k + 1.0) - m::ln(k) - a / k;
+    let (mut t, mut sum) = (1.0f64, 0.0f64);
+    // Below e^−200 in absolute terms a tail no longer matters: D carries a prefactor of at
+    // most π²τ²/(4λ²) ≈ 6.2e5 and f is reported in f32 (smallest subnormal e^−103.4).
+    let mut abs_tol = m::exp(LN_ABS_TOL - ln_scale);
+    for _ in 0..100_000 {
+        sum += t;
+        let base = g * k / ((k + 1.0) * (k + 1.0));
+        let e = a / (k * (k + 1.0));
+        let r = base * m::exp(e.min(700.0));
+        k += 1.0;
+        if e >= 700.0 || t * r > 1e150 {
+            // Move the scale onto the next term: ln t_next = ln_scale + ln t + ln r.
+            let shift = m::ln(t) + m::ln(base) + e;
+            sum *= m::exp(-shift);
+            ln_scale += shift;
+            t = 1.0;
+            abs_tol = m::exp((LN_ABS_TOL - ln_scale).min(RESCALE_LN));
+            continue;
+        }
+        t *= r;
+        if r < 1.0 && t <= (1.0 - r) * (1e-16 * sum).max(abs_tol) {
+            break;
+        }
+        if t <= 0.0 {
+            break;
+        }
+    }
+    m::exp(ln_scale + m::ln(sum))
+}
+
+/// The plain series (the former implementation, log space, two logarithms and an
+/// exponential a term), kept to check [`htsg_sum`] against in tests.
+#[cfg(test)]
+fn htsg_sum_log_space(g: f64, a: f64) -> f64 {
     let ln_g = m::ln(g);
     let start = m::floor(g - 10.0 * m::sqrt(g) - 10.0).max(1.0);
     let mut k = start;
-    // ln of the Poisson weight g^k e^{-g} / k!
     let mut ln_pois = k * ln_g - g - ln_gamma(k + 1.0);
     let mut ln_max = f64::NEG_INFINITY;
-    let mut sum = 0.0; // Σ exp(L_k − ln_max)
+    let mut sum = 0.0;
     for _ in 0..100_000 {
         let ln_k = m::ln(k);
         let lt = ln_pois - ln_k - a / k;
@@ -263,14 +305,12 @@ pub fn htsg_sum(g: f64, a: f64) -> f64 {
         } else {
             sum += m::exp(lt - ln_max);
         }
-        // Next Poisson weight; past the mode the tail Σ_{j>k} is at most
-        // pois_{k+1} / (1 − g/(k+2)).
         ln_pois += ln_g - m::ln(k + 1.0);
         k += 1.0;
         if k > g + 1.0 {
             let ln_tail = ln_pois - m::ln(1.0 - g / (k + 1.0));
             let ln_total = ln_max + m::ln(sum);
-            if ln_tail < (ln_total + LN_REL_TOL).max(LN_ABS_TOL) {
+            if ln_tail < ln_total + LN_REL_TOL {
                 break;
             }
         }
@@ -382,6 +422,25 @@ mod tests {
                 close(got, want, 1e-4),
                 "{label} rho_s({t}) = {got}, want {want}"
             );
+        }
+    }
+
+    /// The ratio recurrence agrees with the log-space series to 1e-12 relative over g ∈
+    /// (0, 300] and A from 0 to far beyond the Poisson mode (where the sum underflows).
+    #[test]
+    fn the_ratio_recurrence_is_the_series() {
+        for &g in &[1e-6, 0.01, 0.3, 1.0, 2.5, 7.0, 18.5, 40.0, 99.0, 150.0, 299.9, 300.0] {
+            for &a in &[0.0, 1e-3, 0.5, 3.0, 20.0, 150.0, 1e3, 1e4, 1e5, 3e6] {
+                let (got, want) = (htsg_sum(g, a), htsg_sum_log_space(g, a));
+                // Below e^−200 (1.4e-87) neither matters (see LN_ABS_TOL) and the new
+                // series stops early there.
+                if want < 1e-80 {
+                    assert!(got < 1e-80, "g {g} A {a}: {got} vs {want}");
+                    continue;
+                }
+                let rel = (got - want).abs() / want;
+                assert!(rel < 1e-12, "g {g} A {a}: {got} vs {want} ({rel:e})");
+            }
         }
     }
 
