@@ -43,3 +43,18 @@ backend! {
     ceil(x): f64 => ceil, ceil;
     round(x): f64 => round, round;
 }
+
+/// (sin x, cos x) in one call through the selected backend (std's `sin_cos` or libm's
+/// `sincos`).
+#[inline(always)]
+#[must_use]
+pub fn sin_cos(x: f64) -> (f64, f64) {
+    #[cfg(feature = "std")]
+    {
+        x.sin_cos()
+    }
+    #[cfg(all(not(feature = "std"), feature = "libm"))]
+    {
+        libm::sincos(x)
+    }
+}
