@@ -226,3 +226,155 @@ pub fn estimate(
         })
         .collect()
 }
+
+/// How many times each part of a [`Floor`] is timed; the fastest run counts (the machines
+/// are shared and noisy: the minimum is the least disturbed run, and a ratio of minima
+/// compares like with like).
+pub const FLOOR_RUNS: usize = 3;
+
+/// The floor of a sampler's cost per sample (issue #16): its irreducible parts, each timed
+/// alone in a bare loop over pre-drawn inputs, and the sampler's own time in the same kind
+/// of loop. All times in ns, the fastest of [`FLOOR_RUNS`] runs.
+///
+/// floor = E\[T\] × (one model evaluation + one trial's random numbers) + one descent, with
+/// E\[T\] = 1 for the warp (one evaluation: the f a sample reports; its two uniforms; its
+/// descent, the hierarchical warp).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Floor {
+    /// One f_r evaluation at the sampler's own sample directions.
+    pub eval_ns: f64,
+    /// Two 64-bit draws from the benches' RNG (a rejection trial's point and height).
+    pub uniforms_ns: f64,
+    /// One descent: rejection, `PackedTree::select` from a uniform; warp, the warp to the
+    /// square.
+    pub descent_ns: f64,
+    /// E\[T\] of the tree (1 for the warp).
+    pub expected_trials: f64,
+    /// The sampler's `sample` in the same bare loop.
+    pub sample_ns: f64,
+}
+
+impl Floor {
+    /// E\[T\] × (eval + uniforms) + descent, in ns.
+    #[must_use]
+    pub fn floor_ns(&self) -> f64 {
+        self.expected_trials * (self.eval_ns + self.uniforms_ns) + self.descent_ns
+    }
+
+    /// The sampler's time over its floor (issue #16's goal: at most 1.5).
+    #[must_use]
+    pub fn over_floor(&self) -> f64 {
+        self.sample_ns / self.floor_ns()
+    }
+
+    /// The JSON object `brdf bench` prints.
+    #[must_use]
+    pub fn json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "eval_ns": self.eval_ns,
+            "uniforms_ns": self.uniforms_ns,
+            "descent_ns": self.descent_ns,
+            "expected_trials": self.expected_trials,
+            "floor_ns": self.floor_ns(),
+            "sample_ns": self.sample_ns,
+            "sample_over_floor": self.over_floor(),
+        })
+    }
+}
+
+/// The fastest of [`FLOOR_RUNS`] timings of `body` over `n` items, in ns per item.
+fn fastest_ns(n: usize, mut body: impl FnMut() -> f64) -> f64 {
+    let mut best = f64::INFINITY;
+    for _ in 0..FLOOR_RUNS {
+        let t0 = Instant::now();
+        std::hint::black_box(body());
+        best = best.min(t0.elapsed().as_secs_f64() * 1e9 / n.max(1) as f64);
+    }
+    best
+}
+
+/// The parts every floor shares: the sampler's bare `sample` loop (which also gives the
+/// directions to evaluate at), one evaluation there, two RNG draws.
+fn shared_parts(
+    sampler: &dyn DirectionSampler,
+    brdf: &dyn Brdf,
+    wi: Vec3,
+    n: usize,
+    seed: u64,
+) -> (f64, f64, f64) {
+    use rand_core::Rng;
+    let mut wos = Vec::with_capacity(n);
+    let sample_ns = fastest_ns(n, || {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        wos.clear();
+        for _ in 0..n {
+            if let Some(s) = sampler.sample(&mut rng) {
+                wos.push(s.wo);
+            }
+        }
+        wos.len() as f64
+    });
+    let eval_ns = fastest_ns(wos.len(), || {
+        wos.iter()
+            .map(|&wo| f64::from(brdf.eval(wi, wo).x))
+            .sum::<f64>()
+    });
+    let uniforms_ns = fastest_ns(n, || {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        (0..n)
+            .map(|_| (rng.next_u64() ^ rng.next_u64()) as f64)
+            .sum::<f64>()
+    });
+    (sample_ns, eval_ns, uniforms_ns)
+}
+
+/// The [`Floor`] of the seed's rejection sampler `q` (of `brdf` at `wi`), over `n` samples.
+pub fn rejection_floor<B: Brdf>(
+    q: &crate::quadtree_sampler::QuadtreeSampler<B>,
+    brdf: &dyn Brdf,
+    n: usize,
+    seed: u64,
+) -> Floor {
+    let (sample_ns, eval_ns, uniforms_ns) = shared_parts(q, brdf, q.wi(), n, seed);
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let us: Vec<f64> = (0..n)
+        .map(|_| crate::quadtree_sampler::uniform_f64(&mut rng))
+        .collect();
+    let tree = q.tree();
+    let descent_ns = fastest_ns(n, || us.iter().map(|&u| tree.select(u).rect.min.x).sum());
+    Floor {
+        eval_ns,
+        uniforms_ns,
+        descent_ns,
+        expected_trials: tree.stats().expected_trials,
+        sample_ns,
+    }
+}
+
+/// The [`Floor`] of the warp sampler `w` (of `brdf` at `wi`), over `n` samples.
+pub fn warp_floor<B: Brdf>(
+    w: &crate::quadtree_sampler::WarpSampler<B>,
+    brdf: &dyn Brdf,
+    wi: Vec3,
+    n: usize,
+    seed: u64,
+) -> Floor {
+    let (sample_ns, eval_ns, uniforms_ns) = shared_parts(w, brdf, wi, n, seed);
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let us: Vec<crate::glam::DVec2> = (0..n)
+        .map(|_| {
+            crate::glam::DVec2::new(
+                crate::quadtree_sampler::uniform_f64(&mut rng),
+                crate::quadtree_sampler::uniform_f64(&mut rng),
+            )
+        })
+        .collect();
+    let descent_ns = fastest_ns(n, || us.iter().map(|&u| w.warp_to_square(u).0.x).sum());
+    Floor {
+        eval_ns,
+        uniforms_ns,
+        descent_ns,
+        expected_trials: 1.0,
+        sample_ns,
+    }
+}

@@ -544,6 +544,24 @@ fn bench_reports_ratios_from_unbiased_estimates() {
         let r = set["ratios"][key].as_f64().unwrap();
         assert!(r.is_finite() && r > 0.0, "{key}: {r}");
     }
+    // The floors (issue #16): every part positive, the floor their stated sum, and E[T]
+    // the tree's for rejection, 1 for the warp.
+    for mode in ["rejection", "warp"] {
+        let f = &set["floor"][mode];
+        let part = |k: &str| f[k].as_f64().unwrap_or_else(|| panic!("{mode} {k}: {f}"));
+        for k in ["eval_ns", "uniforms_ns", "descent_ns", "sample_ns"] {
+            assert!(part(k) > 0.0 && part(k).is_finite(), "{mode} {k}: {f}");
+        }
+        let t = part("expected_trials");
+        let floor = t * (part("eval_ns") + part("uniforms_ns")) + part("descent_ns");
+        assert!((part("floor_ns") - floor).abs() <= 1e-9 * floor, "{mode}: {f}");
+        assert!((part("sample_over_floor") - part("sample_ns") / floor).abs() < 1e-9);
+        if mode == "warp" {
+            assert_eq!(t, 1.0);
+        } else {
+            assert_eq!(Some(t), set["expected_trials"].as_f64());
+        }
+    }
     let samplers = set["samplers"].as_array().unwrap();
     let n = 2_000_000.0;
     for env in ["sky_and_sun", "glint"] {

@@ -145,6 +145,7 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
     let mut rows = Vec::new();
     let mut table = String::new();
     let mut baked_table = String::new();
+    let mut floor_table = String::new();
     let chosen = bench::SETS.iter().filter(|s| selected(s.0)).count();
     let bar = crate::progress::Progress::new("benchmarking", chosen as u64);
     for &(label, name, params) in bench::SETS {
@@ -225,6 +226,33 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
                 .map_err(|e| CliError::Usage(e.to_string()))?,
         );
         let random = random_wi_timing(&baked, &baked_warp, samples.min(300_000), args.seed);
+        // The floors (issue #16): each part of a sample timed alone, at the benches' wi.
+        let floor_n = samples.min(200_000) as usize;
+        let floors = match (&q, &w) {
+            (AnySampler::Rejection(q), AnySampler::Warp(w)) => Some((
+                bench::rejection_floor(q, b, floor_n, args.seed),
+                bench::warp_floor(w, b, wi, floor_n, args.seed),
+            )),
+            _ => None,
+        };
+        if let Some((rf, wf)) = &floors {
+            use std::fmt::Write as _;
+            let _ = writeln!(
+                floor_table,
+                "| {label} | {:.2} | {:.1} | {:.1} | {:.1} | {:.0} | {:.0} | {:.2} | {:.1} | {:.0} | {:.0} | {:.2} |",
+                rf.expected_trials,
+                rf.eval_ns,
+                rf.uniforms_ns,
+                rf.descent_ns,
+                rf.floor_ns(),
+                rf.sample_ns,
+                rf.over_floor(),
+                wf.descent_ns,
+                wf.floor_ns(),
+                wf.sample_ns,
+                wf.over_floor(),
+            );
+        }
         let get = |n: &str| measured.iter().find(|m| m.name == n);
         {
             let (br, bw, qm, ana) = (
@@ -297,6 +325,10 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
             "target_nodes": target.as_ref().map(|s| s.nodes),
             "samplers": measured.iter().map(Measured::json).collect::<Vec<_>>(),
             "baked": baked_json,
+            "floor": floors.as_ref().map(|(r, w)| json!({
+                "rejection": r.json(),
+                "warp": w.json(),
+            })),
             "ratios": {
                 "time_quadtree_over_analytic": ns(qm) / ns(ana),
                 "time_quadtree_over_beckmann": ns(qm) / beckmann_ns,
@@ -390,6 +422,22 @@ efficiencies at the benches' wi (off the grid), the bake not amortised (it is on
             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
         )?;
         write!(stdout, "{baked_table}")?;
+        writeln!(
+            stdout,
+            "\nEach sampler against its floor (issue #16), at the benches' wi, every part timed alone in a bare loop (fastest of {} runs): \
+rejection floor = E[T] × (one evaluation + two RNG draws) + one descent; warp floor = one warp descent + one evaluation + two RNG draws; \
+the sampler's own time in the same kind of loop, and its ratio to the floor (goal ≤ 1.5).\n",
+            bench::FLOOR_RUNS
+        )?;
+        writeln!(
+            stdout,
+            "| set | E[T] | eval ns | 2 draws ns | descent ns | rejection floor ns | rejection ns | /floor | warp descent ns | warp floor ns | warp ns | /floor |"
+        )?;
+        writeln!(
+            stdout,
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        )?;
+        write!(stdout, "{floor_table}")?;
     }
     Ok(())
 }

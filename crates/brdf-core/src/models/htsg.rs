@@ -429,7 +429,9 @@ mod tests {
     /// (0, 300] and A from 0 to far beyond the Poisson mode (where the sum underflows).
     #[test]
     fn the_ratio_recurrence_is_the_series() {
-        for &g in &[1e-6, 0.01, 0.3, 1.0, 2.5, 7.0, 18.5, 40.0, 99.0, 150.0, 299.9, 300.0] {
+        for &g in &[
+            1e-6, 0.01, 0.3, 1.0, 2.5, 7.0, 18.5, 40.0, 99.0, 150.0, 299.9, 300.0,
+        ] {
             for &a in &[0.0, 1e-3, 0.5, 3.0, 20.0, 150.0, 1e3, 1e4, 1e5, 3e6] {
                 let (got, want) = (htsg_sum(g, a), htsg_sum_log_space(g, a));
                 // Below e^−200 (1.4e-87) neither matters (see LN_ABS_TOL) and the new
