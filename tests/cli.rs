@@ -554,7 +554,10 @@ fn bench_reports_ratios_from_unbiased_estimates() {
         }
         let t = part("expected_trials");
         let floor = t * (part("eval_ns") + part("uniforms_ns")) + part("descent_ns");
-        assert!((part("floor_ns") - floor).abs() <= 1e-9 * floor, "{mode}: {f}");
+        assert!(
+            (part("floor_ns") - floor).abs() <= 1e-9 * floor,
+            "{mode}: {f}"
+        );
         assert!((part("sample_over_floor") - part("sample_ns") / floor).abs() < 1e-9);
         if mode == "warp" {
             assert_eq!(t, 1.0);
