@@ -820,60 +820,49 @@ impl BakedSampler {
         }; 4];
         let mut n = 0;
         let mut sum = 0.0;
-        if self.grid.domain == PhiDomain::Rotation {
-            // Fold by the rotation about z by −φ (from cos φ and sin φ without trigonometry)
-            // onto (sin θ, 0, cos θ); each neighbour's map to the local frame is the rotation
-            // about y between the two mirrors, then about z back by φ, written out.
+        // Isotropic: fold by the rotation about z by −φ (from cos φ and sin φ without
+        // trigonometry) onto (sin θ, 0, cos θ); each neighbour's map to the local frame is the
+        // rotation about y between the two mirrors, then about z back by φ, written out.
+        // Otherwise: the domain's fold, and the rotation arc between the mirrors.
+        let iso = self.grid.domain == PhiDomain::Rotation;
+        let (gc, cs, unfold, mc) = if iso {
             let r = m::sqrt(g.x * g.x + g.y * g.y);
-            let (c, s) = if r > 0.0 {
+            let cs = if r > 0.0 {
                 let inv = 1.0 / r;
                 (g.x * inv, g.y * inv)
             } else {
                 (1.0, 0.0)
             };
-            let gc = DVec3::new(r, 0.0, g.z);
-            for (slice, w) in self.grid.neighbours(gc) {
-                if w <= 0.0 || tables.slices[slice].tree.volume() <= 0.0 {
-                    continue;
-                }
-                if let Some(c) = out[..n].iter_mut().find(|c| c.slice == slice) {
-                    c.weight += w;
-                    sum += w;
-                    continue;
-                }
-                let wk = tables.slices[slice].wi.as_dvec3();
-                out[n] = Component {
-                    slice,
-                    weight: w,
-                    to_local: isotropic_to_local((c, s), rotation_between_mirrors_xz(wk, gc)),
-                };
-                n += 1;
-                sum += w;
-            }
+            (DVec3::new(r, 0.0, g.z), cs, DMat3::IDENTITY, DVec3::Z)
         } else {
             let fold = self.grid.domain.fold(g);
             let gc = fold * g;
             let mc = DVec3::new(-gc.x, -gc.y, gc.z).normalize();
-            let unfold = fold.transpose();
-            for (slice, w) in self.grid.neighbours(gc) {
-                if w <= 0.0 || tables.slices[slice].tree.volume() <= 0.0 {
-                    continue;
-                }
-                if let Some(c) = out[..n].iter_mut().find(|c| c.slice == slice) {
-                    c.weight += w;
-                    sum += w;
-                    continue;
-                }
-                let wk = tables.slices[slice].wi.as_dvec3();
-                let mk = DVec3::new(-wk.x, -wk.y, wk.z).normalize();
-                out[n] = Component {
-                    slice,
-                    weight: w,
-                    to_local: unfold * DMat3::from_quat(DQuat::from_rotation_arc(mk, mc)),
-                };
-                n += 1;
-                sum += w;
+            (gc, (1.0, 0.0), fold.transpose(), mc)
+        };
+        for (slice, w) in self.grid.neighbours(gc) {
+            if w <= 0.0 || tables.slices[slice].tree.volume() <= 0.0 {
+                continue;
             }
+            if let Some(c) = out[..n].iter_mut().find(|c| c.slice == slice) {
+                c.weight += w;
+                sum += w;
+                continue;
+            }
+            let wk = tables.slices[slice].wi.as_dvec3();
+            let to_local = if iso {
+                isotropic_to_local(cs, rotation_between_mirrors_xz(wk, gc))
+            } else {
+                let mk = DVec3::new(-wk.x, -wk.y, wk.z).normalize();
+                unfold * DMat3::from_quat(DQuat::from_rotation_arc(mk, mc))
+            };
+            out[n] = Component {
+                slice,
+                weight: w,
+                to_local,
+            };
+            n += 1;
+            sum += w;
         }
         if sum != 1.0 && n > 0 {
             let inv = 1.0 / sum;
