@@ -229,32 +229,39 @@ impl PackedTree {
         packed
     }
 
+    /// Every node's square and depth, exactly (squares are dyadic: f64 holds them to any
+    /// depth a tree may have), as the descent computes them ([`Rect::quadrants`], child k
+    /// taking quadrant k).
+    fn squares(&self) -> Vec<(Rect, u8)> {
+        let mut out = alloc::vec![(Rect::square(-1.0, -1.0, 2.0), 0u8); self.nodes.len()];
+        for (i, n) in self.nodes.iter().enumerate() {
+            if n.is_leaf() {
+                continue;
+            }
+            let (r, depth) = out[i];
+            for (k, q) in r.quadrants().into_iter().enumerate() {
+                out[n.link as usize + k] = (q, depth + 1);
+            }
+        }
+        out
+    }
+
     /// Finds every rim leaf's proposal box (exactly what [`Proposal::in_chart`] gives for
-    /// its square, which the descent computes to the same bits: squares are dyadic) and
-    /// points the leaf at it.
+    /// its square, which the descent computes to the same bits) and points the leaf at it.
     fn index_rim(&mut self) {
         self.rim.clear();
-        let mut squares = alloc::vec![(-1.0f64, -1.0f64, 2.0f64); self.nodes.len()];
-        for i in 0..self.nodes.len() {
-            let (x, y, size) = squares[i];
+        for (i, (rect, _)) in self.squares().into_iter().enumerate() {
             let n = self.nodes[i];
-            if n.is_leaf() {
-                let chart = n.chart();
-                self.nodes[i].data[2] = if chart == Chart::Square {
-                    0
-                } else {
-                    self.rim
-                        .push(Proposal::in_chart(&Rect::square(x, y, size), chart));
-                    (self.rim.len() - 1) as u32
-                };
-            } else {
-                let (c, h) = (n.link as usize, 0.5 * size);
-                for k in 0..4 {
-                    let dx = if k & 1 == 1 { h } else { 0.0 };
-                    let dy = if k >> 1 == 1 { h } else { 0.0 };
-                    squares[c + k] = (x + dx, y + dy, h);
-                }
+            if !n.is_leaf() {
+                continue;
             }
+            let chart = n.chart();
+            self.nodes[i].data[2] = if chart == Chart::Square {
+                0
+            } else {
+                self.rim.push(Proposal::in_chart(&rect, chart));
+                (self.rim.len() - 1) as u32
+            };
         }
     }
 
@@ -395,30 +402,24 @@ impl PackedTree {
             };
             self.nodes.len()
         ];
-        // Parents precede children: squares and depths flow down in index order.
-        for i in 0..self.nodes.len() {
+        for (i, (rect, depth)) in self.squares().into_iter().enumerate() {
             let n = self.nodes[i];
-            let rect = out[i].rect();
+            out[i].x = rect.min.x as f32;
+            out[i].y = rect.min.y as f32;
+            out[i].size = (rect.max.x - rect.min.x) as f32;
+            out[i].depth = depth;
             if n.is_leaf() {
                 let sel = Selected {
                     index: i,
                     rect,
-                    depth: out[i].depth,
+                    depth,
                 };
                 let (prop, _) = self.proposal(&sel);
                 out[i].proposal = prop;
                 out[i].bound = f64::from(f32::from_bits(n.data[0]));
                 out[i].v1 = f64::from(f32::from_bits(n.data[1]));
             } else {
-                let c = n.link as usize;
                 out[i].first_child = n.link;
-                let (x, y, h) = (out[i].x, out[i].y, 0.5 * out[i].size);
-                for k in 0..4 {
-                    out[c + k].x = x + if k & 1 == 1 { h } else { 0.0 };
-                    out[c + k].y = y + if k >> 1 == 1 { h } else { 0.0 };
-                    out[c + k].size = h;
-                    out[c + k].depth = out[i].depth + 1;
-                }
             }
         }
         for i in (0..out.len()).rev() {
