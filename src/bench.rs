@@ -227,14 +227,15 @@ pub fn estimate(
         .collect()
 }
 
-/// How many times each part of a [`Floor`] is timed; the fastest run counts (the machines
-/// are shared and noisy: the minimum is the least disturbed run, and a ratio of minima
-/// compares like with like).
-pub const FLOOR_RUNS: usize = 3;
+/// How many times `brdf bench` times each of its bare loops (a [`Floor`]'s parts, the
+/// Beckmann yardstick, the baked sampler's random-wi loops); the fastest run counts (the
+/// machines are shared and noisy: the minimum is the least disturbed run, and a ratio of
+/// minima compares like with like).
+pub const TIMING_RUNS: usize = 3;
 
 /// The floor of a sampler's cost per sample (issue #16): its irreducible parts, each timed
 /// alone in a bare loop over pre-drawn inputs, and the sampler's own time in the same kind
-/// of loop. All times in ns, the fastest of [`FLOOR_RUNS`] runs.
+/// of loop. All times in ns, the fastest of [`TIMING_RUNS`] runs.
 ///
 /// floor = E\[T\] × (one model evaluation + one trial's random numbers) + one descent, with
 /// E\[T\] = 1 for the warp (one evaluation: the f a sample reports; its two uniforms; its
@@ -282,10 +283,11 @@ impl Floor {
     }
 }
 
-/// The fastest of [`FLOOR_RUNS`] timings of `body` over `n` items, in ns per item.
-fn fastest_ns(n: usize, mut body: impl FnMut() -> f64) -> f64 {
+/// The fastest of [`TIMING_RUNS`] timings of `body` over `n` items, in ns per item (`body`'s
+/// result goes through `black_box`, so its work is not optimised away).
+pub fn fastest_ns<T>(n: usize, mut body: impl FnMut() -> T) -> f64 {
     let mut best = f64::INFINITY;
-    for _ in 0..FLOOR_RUNS {
+    for _ in 0..TIMING_RUNS {
         let t0 = Instant::now();
         std::hint::black_box(body());
         best = best.min(t0.elapsed().as_secs_f64() * 1e9 / n.max(1) as f64);
@@ -341,7 +343,9 @@ pub fn rejection_floor<B: Brdf>(
         .map(|_| crate::quadtree_sampler::uniform_f64(&mut rng))
         .collect();
     let tree = q.tree();
-    let descent_ns = fastest_ns(n, || us.iter().map(|&u| tree.select(u).rect.min.x).sum());
+    let descent_ns = fastest_ns(n, || {
+        us.iter().map(|&u| tree.select(u).rect.min.x).sum::<f64>()
+    });
     Floor {
         eval_ns,
         uniforms_ns,
@@ -369,7 +373,9 @@ pub fn warp_floor<B: Brdf>(
             )
         })
         .collect();
-    let descent_ns = fastest_ns(n, || us.iter().map(|&u| w.warp_to_square(u).0.x).sum());
+    let descent_ns = fastest_ns(n, || {
+        us.iter().map(|&u| w.warp_to_square(u).0.x).sum::<f64>()
+    });
     Floor {
         eval_ns,
         uniforms_ns,

@@ -139,7 +139,7 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
         SamplerMode::Analytic,
         BuildConfig::default(),
     )?;
-    let beckmann_ns = (0..TIMING_RUNS)
+    let beckmann_ns = (0..bench::TIMING_RUNS)
         .map(|_| bench::estimate(&beckmann, &envs, samples, args.seed)[0].seconds_per_sample * 1e9)
         .fold(f64::INFINITY, f64::min);
     let mut rows = Vec::new();
@@ -391,13 +391,14 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
         serde_json::to_writer(&mut stdout, &out).map_err(std::io::Error::from)?;
         writeln!(stdout)?;
     } else {
+        let timing_runs = bench::TIMING_RUNS;
         writeln!(
             stdout,
             "wi θ = 45°, φ = 30°; sky 0.2 + 0.8 cos θ plus a 2° sun at θ = 60°, φ = 120° (glint: \
 at θ = 40°, φ = 215°, 6° from the mirror direction); \
 {samples} samples per sampler; builds on 1 thread amortised over {AMORTISE:.0e} samples; \
 rayon speedup on {threads} threads; efficiency = 1/(variance × time per sample); \
-the Beckmann analytic sample (cook-torrance m = 0.1) takes {beckmann_ns:.0} ns (fastest of {TIMING_RUNS} runs).\n"
+the Beckmann analytic sample (cook-torrance m = 0.1) takes {beckmann_ns:.0} ns (fastest of {timing_runs} runs).\n"
         )?;
         writeln!(
             stdout,
@@ -427,7 +428,7 @@ efficiencies at the benches' wi (off the grid), the bake not amortised (it is on
             "\nEach sampler against its floor (issue #16), at the benches' wi, every part timed alone in a bare loop (fastest of {} runs): \
 rejection floor = E[T] × (one evaluation + two RNG draws) + one descent; warp floor = one warp descent + one evaluation + two RNG draws; \
 the sampler's own time in the same kind of loop, and its ratio to the floor (goal ≤ 1.5).\n",
-            bench::FLOOR_RUNS
+            bench::TIMING_RUNS
         )?;
         writeln!(
             stdout,
@@ -442,14 +443,9 @@ the sampler's own time in the same kind of loop, and its ratio to the floor (goa
     Ok(())
 }
 
-/// How many times the Beckmann yardstick and the baked sampler's loops are timed; the
-/// fastest run counts (the machines are shared and noisy: the minimum is the run least
-/// disturbed, and a ratio of two minima compares like with like).
-const TIMING_RUNS: usize = 3;
-
 /// Time per sample and per pdf of a baked sampler with a new incident direction for every
 /// call (cosine-distributed, seeded, drawn before the clock starts): the fastest of
-/// [`TIMING_RUNS`] runs of each loop.
+/// [`bench::TIMING_RUNS`] runs of each loop.
 struct RandomWi {
     rejection_ns: f64,
     warp_ns: f64,
@@ -471,31 +467,24 @@ fn random_wi_timing(baked: &BakedSampler, warp: &BakedSampler, n: u64, seed: u64
         .collect();
     let time = |b: &BakedSampler| {
         let mut out = Vec::with_capacity(inputs.len());
-        let mut ns = f64::INFINITY;
-        for _ in 0..TIMING_RUNS {
+        let ns = bench::fastest_ns(inputs.len(), || {
             let mut r = rand_pcg::Pcg64::seed_from_u64(seed);
             out.clear();
-            let t0 = Instant::now();
             for &(wi, uc, u) in &inputs {
                 out.push(b.sample(wi, uc, u, &mut r).ok().flatten().map(|s| s.wo));
             }
-            ns = ns.min(t0.elapsed().as_secs_f64() * 1e9 / n as f64);
-        }
+        });
         let pairs: Vec<_> = inputs
             .iter()
             .zip(&out)
             .filter_map(|(&(wi, _, _), wo)| wo.map(|wo| (wi, wo)))
             .collect();
-        let mut pdf_ns = f64::INFINITY;
-        for _ in 0..TIMING_RUNS {
-            let t0 = Instant::now();
-            let mut acc = 0.0f32;
-            for &(wi, wo) in &pairs {
-                acc += b.pdf(wi, wo).unwrap_or(0.0);
-            }
-            std::hint::black_box(acc);
-            pdf_ns = pdf_ns.min(t0.elapsed().as_secs_f64() * 1e9 / pairs.len().max(1) as f64);
-        }
+        let pdf_ns = bench::fastest_ns(pairs.len(), || {
+            pairs
+                .iter()
+                .map(|&(wi, wo)| b.pdf(wi, wo).unwrap_or(0.0))
+                .sum::<f32>()
+        });
         (ns, pdf_ns)
     };
     let (rejection_ns, pdf_ns) = time(baked);
