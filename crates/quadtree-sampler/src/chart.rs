@@ -237,8 +237,11 @@ impl UnitRule {
 }
 
 /// The largest integrand values an integration met, for bounding (every point it evaluates
-/// lies in the node): f itself (with its square point) and f × the chart's Jacobian (with its
-/// chart coordinates: (a, t) orthographic, (α, β) concentric).
+/// lies in the node): f itself (with its square point), f × the chart's Jacobian (with its
+/// chart coordinates: (a, t) orthographic, (α, β) concentric) and, orthographic only, f × the
+/// transposed angle chart's Jacobian (with its (b, s)): each is the seed of the bound search
+/// in that proposal, whose height can peak elsewhere than the others' (f·Jacobian may have a
+/// maximum between a lobe on the rim and a diffuse plateau inside).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Peak {
     /// Largest f seen.
@@ -249,6 +252,10 @@ pub struct Peak {
     pub fj: f64,
     /// Where (chart coordinates).
     pub q: DVec2,
+    /// Largest f × the transposed angle chart's Jacobian seen (orthographic; 0 concentric).
+    pub fjy: f64,
+    /// Where (transposed angle coordinates (b, s)).
+    pub qy: DVec2,
 }
 
 impl Peak {
@@ -265,6 +272,10 @@ impl Peak {
             self.fj = other.fj;
             self.q = other.q;
         }
+        if other.fjy > self.fjy {
+            self.fjy = other.fjy;
+            self.qy = other.qy;
+        }
     }
 
     #[inline]
@@ -277,6 +288,19 @@ impl Peak {
         if fj > self.fj {
             self.fj = fj;
             self.q = q;
+        }
+    }
+
+    /// [`Self::see`] for a point of the orthographic angle chart, also in the transposed
+    /// chart: its Jacobian cos²b·cos s is √(1 − y²)·z at the same direction.
+    #[inline]
+    fn see_angle(&mut self, f: f64, c: &ChartPoint, q: DVec2) {
+        self.see(f, c, q);
+        let fjy = f * m::sqrt((1.0 - c.w.y * c.w.y).max(0.0)) * c.w.z;
+        if fjy > self.fjy {
+            self.fjy = fjy;
+            let b = m::asin(c.w.y.clamp(-1.0, 1.0));
+            self.qy = DVec2::new(b, m::atan2(c.w.x, c.w.z));
         }
     }
 }
@@ -358,7 +382,7 @@ fn integrate_angle(
                 let (t, wt) = remap(t0, t1, r0, r1, u, wu);
                 let q = angle_point(a, t);
                 let fv = f(q.w);
-                peak.see(fv, &q, DVec2::new(a, t));
+                peak.see_angle(fv, &q, DVec2::new(a, t));
                 inner += wt * fv * q.jacobian;
             }
             total += wa * inner;

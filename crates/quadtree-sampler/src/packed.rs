@@ -7,7 +7,7 @@
 //! - a node's square is implicit: the root is [−1,1]², child k of a square takes its
 //!   quadrant k ((−,−), (+,−), (−,+), (+,+)), computed exactly in f64 on the way down;
 //! - a leaf's proposal box is a pure function of its square and its chart
-//!   ([`Proposal::for_node`]): the square itself, or for a rim leaf (the only ones whose box
+//!   ([`Proposal::in_chart`]): the square itself, or for a rim leaf (the only ones whose box
 //!   is not their square) a box in angle or sine coordinates, which costs a handful of
 //!   inverse sines to find — those are found once, when the tree is packed or read, and kept
 //!   beside the nodes (40 bytes per rim leaf), so a sample never recomputes them;

@@ -74,8 +74,8 @@ impl Node {
     }
 }
 
-/// Azimuths of points on the unit circle inside `rect`: nine per arc, ends included (nudged
-/// inside). The arcs' ends are where the circle crosses the rectangle's edges.
+/// Orthographic: azimuths of points on the unit circle inside `rect`: nine per arc, ends
+/// included (nudged inside). The arcs' ends are where the circle crosses the rectangle's edges.
 fn rim_arc_points(rect: &Rect) -> Vec<f64> {
     use core::f64::consts::{PI, TAU};
     let mut cuts: Vec<f64> = Vec::with_capacity(10);
@@ -117,6 +117,48 @@ fn rim_arc_points(rect: &Rect) -> Vec<f64> {
     points
 }
 
+/// Concentric: the rim is the square's edge. Points (cos φ, sin φ) of the rim directions of the
+/// node's stretches of it: nine per edge it lies on, ends included (nudged inside).
+fn edge_rim_points(rect: &Rect) -> Vec<(f64, f64)> {
+    let mut points = Vec::new();
+    let mut stretch = |p0: DVec2, p1: DVec2| {
+        let pad = (p1 - p0) * 1e-9;
+        for j in 0..9 {
+            let p = p0 + pad + (p1 - p0 - 2.0 * pad) * (j as f64 / 8.0);
+            let w = crate::chart::square_direction(DiskMap::Concentric, p).unwrap_or(DVec3::Z);
+            let r = m::sqrt(w.x * w.x + w.y * w.y);
+            if r > 0.0 {
+                points.push((w.x / r, w.y / r));
+            }
+        }
+    };
+    let (lo, hi) = (rect.min, rect.max);
+    if lo.x <= -1.0 {
+        stretch(DVec2::new(-1.0, lo.y), DVec2::new(-1.0, hi.y));
+    }
+    if hi.x >= 1.0 {
+        stretch(DVec2::new(1.0, lo.y), DVec2::new(1.0, hi.y));
+    }
+    if lo.y <= -1.0 {
+        stretch(DVec2::new(lo.x, -1.0), DVec2::new(hi.x, -1.0));
+    }
+    if hi.y >= 1.0 {
+        stretch(DVec2::new(lo.x, 1.0), DVec2::new(hi.x, 1.0));
+    }
+    points
+}
+
+/// The node's rim points (cos φ, sin φ) under `map` ([`rim_arc_points`], [`edge_rim_points`]).
+fn rim_points(map: DiskMap, rect: &Rect) -> Vec<(f64, f64)> {
+    match map {
+        DiskMap::Orthographic => rim_arc_points(rect)
+            .into_iter()
+            .map(|phi| (m::cos(phi), m::sin(phi)))
+            .collect(),
+        DiskMap::Concentric => edge_rim_points(rect),
+    }
+}
+
 /// `m` as an f32 no smaller than it (an upper bound stays one).
 pub(crate) fn round_up_f32(m: f64) -> f32 {
     let b = m as f32;
@@ -140,11 +182,11 @@ struct Evaluation {
     proposal: Proposal,
 }
 
-/// Integration cells the build may remember for the nodes still to split (64 bytes each:
-/// 64 MiB). Past it, a new node keeps only the cells of its children's first rule
+/// Integration cells the build may remember for the nodes still to split (88 bytes each:
+/// 88 MiB). Past it, a new node keeps only the cells of its children's first rule
 /// application, and past twice it none: the memoised cells only save work (a forgotten one
 /// is recomputed bit for bit), so the tree does not depend on this, and the build's memory
-/// stays below about 2 × 64 MiB plus 80 bytes per node.
+/// stays below about 2 × 88 MiB plus 80 bytes per node.
 pub(crate) const CELL_CACHE_LIMIT: usize = 1 << 20;
 
 /// Parents split per batch of the breadth-first pass (between batches the evaluation budget
@@ -249,29 +291,16 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
     /// left for it; returns its own cells for its children.
     fn evaluate(&self, rect: &Rect, cells: Option<Cell>) -> (Evaluation, Option<Cell>) {
         let map = self.config.map;
-        let mut prop = Proposal::for_node(map, rect);
-        // The angle chart is needed only where f is unbounded at the rim; elsewhere the seed's
-        // square proposal is tighter (its only waste, outside the disk, shrinks as it splits).
-        let rim_peak = if matches!(prop.chart, Chart::Angle | Chart::AngleY) {
-            self.rim_probe(rect)
-        } else {
-            None
-        };
-        if let Some(RimProbe::Bounded(_)) = rim_peak {
-            prop = Proposal {
-                chart: Chart::Square,
-                lo: rect.min,
-                hi: rect.max,
-            };
-        }
+        let square = Proposal::in_chart(rect, Chart::Square);
         if map == DiskMap::Orthographic && rect.radius_range().0 >= 1.0 {
             let e = Evaluation {
                 v1: 0.0,
                 bound: 0.0,
-                proposal: prop,
+                proposal: square,
             };
             return (e, None);
         }
+        let chart = Proposal::for_node(map, rect);
         let f = |w: DVec3| self.f(w);
         // One application of the rule sets the tolerance and is the refinement's start (the
         // node's points are integrated once, not twice; and not at all when the parent's
@@ -292,11 +321,52 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         )
         .max(0.0);
         // The node's integration as if nothing were memoised (so the count, and the budget's
-        // verdict, do not depend on the cache), and the bound search's grid, hints and three
+        // verdict, do not depend on the cache), and each bound search's grid, hints and three
         // compass searches of at most 400 steps.
         let g = u64::from(self.config.bound_grid) + 1;
         let depth = u32::from(self.config.integration_depth);
-        self.spend((1 + cell.applications(tol, depth)) * self.per_application + g * g + 1200);
+        let search = g * g + 1200;
+        self.spend((1 + cell.applications(tol, depth)) * self.per_application + search);
+        let chart_bound = self.proposal_bound(&chart, rect, &peak, v1, None);
+        // A rim node is sampled in the proposal with the smaller box it can bound. The angle
+        // and sine charts bound f·Jacobian even where f is unbounded at the rim (Ward's 1/√z),
+        // but their Jacobians vanish there, so their boxes waste about half of a rim node
+        // whatever f does; where f stays bounded the seed's square is usually tighter (its only
+        // waste, outside the disk, orthographic; none, concentric). Not always: where f climbs
+        // steeply just short of the rim (Oren–Nayar at grazing incidence) the vanishing
+        // Jacobian is what flattens the height. So both are bounded and the smaller kept (ties
+        // to the square).
+        let (proposal, bound) = match (chart.chart, self.rim_probe(rect, chart.chart)) {
+            (Chart::Square, _) | (_, RimProbe::Unbounded) => (chart, chart_bound),
+            (_, RimProbe::Bounded(limit)) => {
+                self.spend(search);
+                let square_bound = self.proposal_bound(&square, rect, &peak, v1, Some(limit));
+                if square.area() * square_bound <= chart.area() * chart_bound {
+                    (square, square_bound)
+                } else {
+                    (chart, chart_bound)
+                }
+            }
+        };
+        let e = Evaluation {
+            v1,
+            bound,
+            proposal,
+        };
+        (e, Some(cell))
+    }
+
+    /// M for `prop` on a node of integral `v1` whose integration met `peak`: the bound
+    /// search ([`Self::bound`]) from the integration's largest height, no less than f's limit
+    /// at the rim where one is given (times the safety factor), rounded up to f32.
+    fn proposal_bound(
+        &self,
+        prop: &Proposal,
+        rect: &Rect,
+        peak: &Peak,
+        v1: f64,
+        rim_limit: Option<f64>,
+    ) -> f64 {
         // A bound below the node's mean height is certainly wrong (a peak between the points
         // looked at): take four times the mean instead, so that P = ¼ splits the node.
         let mean = if prop.area() > 0.0 {
@@ -309,30 +379,22 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         let seed = match prop.chart {
             Chart::Square => (peak.f, peak.p),
             Chart::Angle | Chart::Sine => (peak.fj, peak.q),
-            // The integration's peak is in (a, t): move it into (b, s), with its height there.
-            Chart::AngleY => {
-                let q = prop.coordinates(map, crate::chart::angle_point(peak.q.x, peak.q.y).w);
-                (self.height(&prop, rect, q), q)
-            }
+            Chart::AngleY => (peak.fjy, peak.qy),
         };
-        let mut found = self.bound(&prop, rect, seed);
-        if let Some(RimProbe::Bounded(limit)) = rim_peak {
+        let mut found = self.bound(prop, rect, seed);
+        if let Some(limit) = rim_limit {
             found = found.max(limit * self.config.bound_safety);
         }
-        let bound = if found >= mean * self.config.bound_safety {
+        // (The comparison allows for rounding: a constant f integrates to its value times
+        // the area only up to the rule's last bits, and must not be taken for a missed peak.)
+        let bound = if found >= mean * self.config.bound_safety * (1.0 - 1e-9) {
             found
         } else {
             4.0 * mean
         };
         // The sampling layout keeps M in f32: round it up here, so that the tree's E[T] (and
         // every decision taken on it) is the one sampling will see.
-        let bound = f64::from(round_up_f32(bound));
-        let e = Evaluation {
-            v1,
-            bound,
-            proposal: prop,
-        };
-        (e, Some(cell))
+        f64::from(round_up_f32(bound))
     }
 
     /// M: the largest h found on a dense grid (edges and corners included), at the peak hints
@@ -415,11 +477,14 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
     /// Looks at f along the node's own arc of the rim (nine points on each arc inside the
     /// node), at heights z = 1e-5 and 1e-9 above it. If f still grows between them (Ward's
     /// 1/√z, even under a diffuse term) it is treated as unbounded; otherwise the largest
-    /// value seen is its limit at the rim.
-    fn rim_probe(&self, rect: &Rect) -> Option<RimProbe> {
+    /// value seen is its limit at the rim. A node off the rim (its proposal the square) has
+    /// nothing to look at: bounded, limit 0.
+    fn rim_probe(&self, rect: &Rect, chart: Chart) -> RimProbe {
+        if chart == Chart::Square {
+            return RimProbe::Bounded(0.0);
+        }
         let mut limit: f64 = 0.0;
-        for phi in rim_arc_points(rect) {
-            let (c, s) = (m::cos(phi), m::sin(phi));
+        for (c, s) in rim_points(self.config.map, rect) {
             let at = |z: f64| {
                 let r = m::sqrt((1.0 - z) * (1.0 + z));
                 self.f(DVec3::new(r * c, r * s, z))
@@ -428,11 +493,11 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             // z ≳ 1e-8); any growth toward it means f is still climbing there: unbounded.
             let (near, nearer) = (at(1e-5), at(1e-9));
             if nearer > near * (1.0 + 1e-3) && nearer > 0.0 {
-                return Some(RimProbe::Unbounded);
+                return RimProbe::Unbounded;
             }
             limit = limit.max(near).max(nearer);
         }
-        Some(RimProbe::Bounded(limit))
+        RimProbe::Bounded(limit)
     }
 
     /// Hill-climbs h from q0 with axis steps, halving them when no step improves.
@@ -557,7 +622,7 @@ impl Quadtree {
     /// for this `wi` ([`BuildError::ZeroBrdf`]) or one the budget cannot bound to at most
     /// [`crate::MAX_USABLE_EXPECTED_TRIALS`] trials per sample ([`BuildError::Exhausted`]).
     /// The build's time is bounded by the node budget and its memory by the node budget and a
-    /// fixed cache of integration cells (about 130 MiB). This is the build's own
+    /// fixed cache of integration cells (about 180 MiB). This is the build's own
     /// layout, with everything each node's evaluation found; samplers use its
     /// [`crate::PackedTree`].
     pub fn new<B: Brdf + ?Sized>(
