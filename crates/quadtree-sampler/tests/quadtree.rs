@@ -47,8 +47,7 @@ const SETS: &[(&str, &[&str])] = &[
 const ANGLES: [f64; 4] = [0.0, 45.0, 80.0, 89.0];
 
 /// Models whose eval costs microseconds (HTSG sums a series, Poulin-Fournier integrates over
-/// the cylinder): the seed rule and the χ² run for them, but not target mode (E[T] ≤ 1.25),
-/// whose rim refinement needs 10⁵–10⁶ evaluations per build — minutes on 2 cores.
+/// the cylinder): the albedo oracle uses a coarser hemisphere rule for them.
 const COSTLY: &[&str] = &["htsg", "poulin-fournier"];
 
 fn model(name: &str, params: &[&str]) -> Box<dyn Brdf> {
@@ -74,7 +73,6 @@ fn builds_terminate_with_bounded_trials_and_the_right_albedo() {
 
 /// [`builds_terminate_with_bounded_trials_and_the_right_albedo`] on the concentric map.
 #[test]
-#[ignore = "the concentric half: about 90 s on 2 cores; run with --ignored"]
 fn builds_terminate_with_bounded_trials_and_the_right_albedo_concentric() {
     check_builds(DiskMap::Concentric);
 }
@@ -110,9 +108,6 @@ fn check_builds(map: DiskMap) {
                     (got - want).abs() <= 1e-3 * want,
                     "{name} {params:?} {theta}° {map:?}: tree albedo {got} vs quadrature {want}"
                 );
-                if COSTLY.contains(&name) {
-                    continue;
-                }
                 let target = QuadtreeSampler::new(
                     &*b,
                     wi,
@@ -130,7 +125,55 @@ fn check_builds(map: DiskMap) {
                     t.expected_trials,
                     t.nodes
                 );
+                // Target mode costs a bounded multiple of the seed rule. Issue 16's goal is 4×
+                // its nodes; a sharp smooth lobe misses it: its seed-rule leaves have P ≈ 0.6,
+                // the target needs 0.8 (× safety), and one split of a smooth lobe's leaf takes
+                // it from one to the other, so the whole lobe splits once more (measured, these
+                // sets: up to 4.8×, Schlick p = 0.3 at 80°; Cook–Torrance 89° 4.3×). Hence 5×
+                // here, counted from a full tree of depth 3 (85 nodes): where the seed rule stops
+                // at one node above 1.25 (Lambert, orthographic: 4/π × safety), the target must
+                // resolve the rim that far. (It was 94 421 nodes for Lambert before rim leaves
+                // chose their proposal.)
+                assert!(
+                    t.nodes <= 5 * s.nodes.max(85),
+                    "{name} {params:?} {theta}° {map:?}: target {} nodes, seed rule {}",
+                    t.nodes,
+                    s.nodes
+                );
                 assert!((target.albedo() - want).abs() <= 1e-3 * want);
+            }
+        }
+    }
+}
+
+/// The concentric map has a constant Jacobian, so a constant f is one node whose only waste is
+/// the safety factor (1.02): Lambert at any wi, Oren–Nayar at normal incidence (its B term
+/// vanishes with tan β = 0), by the seed rule and by target mode alike. (Rim leaves once sampled
+/// in the sine chart whatever f did, whose vanishing Jacobian kept their acceptance near ½:
+/// 4 129 nodes, E[T] 1.998, and 270 049 nodes for target 1.25.)
+#[test]
+fn a_constant_brdf_on_the_concentric_map_is_one_node() {
+    let cases: [(&str, &[f64]); 2] = [
+        ("lambert", &[0.0, 30.0, 60.0, 80.0, 89.0, 89.99]),
+        ("oren-nayar", &[0.0]),
+    ];
+    for (name, thetas) in cases {
+        let b = model(name, &[]);
+        for &theta in thetas {
+            for target in [None, Some(1.25), Some(1.05)] {
+                let config = BuildConfig {
+                    map: DiskMap::Concentric,
+                    target_trials: target,
+                    ..BuildConfig::default()
+                };
+                let t = Quadtree::new(&*b, dir(theta, 20.0), config).unwrap();
+                let st = t.stats();
+                assert_eq!(st.nodes, 1, "{name} {theta}° {target:?}");
+                assert!(
+                    st.expected_trials <= 1.03,
+                    "{name} {theta}° {target:?}: E[T] {}",
+                    st.expected_trials
+                );
             }
         }
     }
@@ -140,11 +183,7 @@ fn check_builds(map: DiskMap) {
 fn builds_terminate_at_grazing_incidence() {
     for &(name, params) in SETS {
         let b = model(name, params);
-        let config = if COSTLY.contains(&name) {
-            BuildConfig::default()
-        } else {
-            BuildConfig::with_target_trials(1.25)
-        };
+        let config = BuildConfig::with_target_trials(1.25);
         let s = QuadtreeSampler::new(&*b, dir(89.9, 0.0), config).unwrap();
         assert!(s.stats().nodes <= 1 << 20);
         assert!(s.albedo().is_finite());
