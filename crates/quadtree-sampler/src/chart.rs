@@ -22,7 +22,10 @@
 //!   along which a node is split into triangles.
 //!
 //! Sampling uses the seed's uniform (x, y) proposal in every leaf that stays off the rim
-//! ([`Chart::Square`]), and the bounded angle or sine proposal in leaves that touch it.
+//! ([`Chart::Square`]). A leaf that touches the rim is offered its angle or sine chart
+//! ([`Proposal::for_node`]), which bounds f·Jacobian even where f grows without bound at the
+//! rim; where f stays bounded the square is bounded too, and the build keeps whichever box
+//! has the smaller volume (usually the square: the charts' Jacobians vanish at the rim).
 
 use brdf_core::DiskMap;
 use brdf_core::math as m;
@@ -701,8 +704,10 @@ pub struct Proposal {
 }
 
 impl Proposal {
-    /// The proposal for a node: the seed's square unless the node touches the rim
-    /// (orthographic) or the square's edge (concentric).
+    /// The chart proposal for a node: the seed's square unless the node touches the rim
+    /// (orthographic: the smaller of the two angle boxes) or the square's edge (concentric: the
+    /// sine box). For a rim node the build may still choose the square, where f is bounded
+    /// at the rim and the square's box is the smaller.
     #[must_use]
     pub fn for_node(map: DiskMap, rect: &Rect) -> Self {
         match map {
