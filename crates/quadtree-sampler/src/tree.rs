@@ -336,9 +336,11 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         // steeply just short of the rim (Oren–Nayar at grazing incidence) the vanishing
         // Jacobian is what flattens the height. So both are bounded and the smaller kept (ties
         // to the square).
-        let (proposal, bound) = match (chart.chart, self.rim_probe(rect, chart.chart)) {
-            (Chart::Square, _) | (_, RimProbe::Unbounded) => (chart, chart_bound),
-            (_, RimProbe::Bounded(limit)) => {
+        // (Off the rim the chart proposal is the square itself: nothing to compare.)
+        let rim = (chart.chart != Chart::Square).then(|| self.rim_probe(rect));
+        let (proposal, bound) = match rim {
+            None | Some(RimProbe::Unbounded) => (chart, chart_bound),
+            Some(RimProbe::Bounded(limit)) => {
                 self.spend(search);
                 let square_bound = self.proposal_bound(&square, rect, &peak, v1, Some(limit));
                 if square.area() * square_bound <= chart.area() * chart_bound {
@@ -474,15 +476,12 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         best[0].0.max(0.0).max(h0).max(h1).max(h2) * self.config.bound_safety
     }
 
-    /// Looks at f along the node's own arc of the rim (nine points on each arc inside the
-    /// node), at heights z = 1e-5 and 1e-9 above it. If f still grows between them (Ward's
-    /// 1/√z, even under a diffuse term) it is treated as unbounded; otherwise the largest
-    /// value seen is its limit at the rim. A node off the rim (its proposal the square) has
-    /// nothing to look at: bounded, limit 0.
-    fn rim_probe(&self, rect: &Rect, chart: Chart) -> RimProbe {
-        if chart == Chart::Square {
-            return RimProbe::Bounded(0.0);
-        }
+    /// Looks at f along the node's own stretch of the rim ([`rim_points`]: its arcs of the
+    /// circle, orthographic; its parts of the square's edge, concentric), at heights z = 1e-5
+    /// and 1e-9 above it. If f still grows between them (Ward's 1/√z, even under a diffuse
+    /// term) it is treated as unbounded; otherwise the largest value seen is its limit at the
+    /// rim.
+    fn rim_probe(&self, rect: &Rect) -> RimProbe {
         let mut limit: f64 = 0.0;
         for (c, s) in rim_points(self.config.map, rect) {
             let at = |z: f64| {
