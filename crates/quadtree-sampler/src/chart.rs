@@ -149,6 +149,19 @@ pub fn angle_point_y(b: f64, s: f64) -> ChartPoint {
     }
 }
 
+/// The transposed angle chart's coordinates (b, s) of a direction (inverse of
+/// [`angle_point_y`]; s = 0 at the chart's poles y = ±1).
+#[inline]
+fn angle_y_coordinates(w: DVec3) -> DVec2 {
+    let b = m::asin(w.y.clamp(-1.0, 1.0));
+    let s = if m::cos(b) > 0.0 {
+        m::atan2(w.x, w.z)
+    } else {
+        0.0
+    };
+    DVec2::new(b, s)
+}
+
 /// The concentric map at a square point given by its sine coordinates (α, β), with z exact.
 #[inline]
 #[must_use]
@@ -302,8 +315,7 @@ impl Peak {
         let fjy = f * m::sqrt((1.0 - c.w.y * c.w.y).max(0.0)) * c.w.z;
         if fjy > self.fjy {
             self.fjy = fjy;
-            let b = m::asin(c.w.y.clamp(-1.0, 1.0));
-            self.qy = DVec2::new(b, m::atan2(c.w.x, c.w.z));
+            self.qy = angle_y_coordinates(c.w);
         }
     }
 }
@@ -816,12 +828,7 @@ impl Proposal {
                 let t = if ca > 0.0 { m::atan2(w.y, w.z) } else { 0.0 };
                 DVec2::new(a, t)
             }
-            Chart::AngleY => {
-                let b = m::asin(w.y.clamp(-1.0, 1.0));
-                let cb = m::cos(b);
-                let s = if cb > 0.0 { m::atan2(w.x, w.z) } else { 0.0 };
-                DVec2::new(b, s)
-            }
+            Chart::AngleY => angle_y_coordinates(w),
             Chart::Sine => {
                 let p =
                     brdf_core::maps::disk_to_square_concentric(w.truncate().as_vec2()).as_dvec2();
