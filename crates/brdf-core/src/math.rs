@@ -58,3 +58,67 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
         libm::sincos(x)
     }
 }
+
+/// e^x for x ≤ 0, in plain arithmetic: no table, no branch and no call, so a loop of them
+/// vectorises (the HTSG series sums tens of such terms per evaluation).
+///
+/// x = k·ln 2 + r with |r| ≤ ½ln 2 (ln 2 split in two parts, so r is exact to rounding), e^r
+/// by its Taylor polynomial of degree 13 (truncation below 4·10⁻¹⁸ relative) evaluated by
+/// Estrin's scheme, and 2^k put into the exponent bits. Accurate to a few ulp for
+/// x ∈ [−708, 0]; below −708 it returns e^−708 ≈ 3·10⁻³⁰⁸ (callers add such a term to a sum
+/// of order one, where it vanishes); NaN is taken as −708. Positive x is outside its domain.
+#[inline(always)]
+#[must_use]
+pub fn exp_nonpositive(x: f64) -> f64 {
+    // 1.5·2^52: adding it rounds x·log2(e) to an integer held in the low mantissa bits.
+    const SHIFT: f64 = 6_755_399_441_055_744.0;
+    const LN2_HI: f64 = 0.693_147_180_369_123_8;
+    const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
+    let x = x.max(-708.0);
+    let kf = x * core::f64::consts::LOG2_E + SHIFT;
+    let kd = kf - SHIFT;
+    // The low bits of kf are k in two's complement; shifted up by 52 they are its exponent.
+    let k = kf.to_bits() as i64;
+    let r = (x - kd * LN2_HI) - kd * LN2_LO;
+    let (r2, r4) = (r * r, r * r * r * r);
+    let c = |n0: f64, n1: f64| n0 + r * n1;
+    let q03 = c(1.0, 1.0) + r2 * c(1.0 / 2.0, 1.0 / 6.0);
+    let q47 = c(1.0 / 24.0, 1.0 / 120.0) + r2 * c(1.0 / 720.0, 1.0 / 5040.0);
+    let q811 = c(1.0 / 40_320.0, 1.0 / 362_880.0) + r2 * c(1.0 / 3_628_800.0, 1.0 / 39_916_800.0);
+    let q1213 = c(1.0 / 479_001_600.0, 1.0 / 6_227_020_800.0);
+    let p = (q03 + r4 * q47) + (r4 * r4) * (q811 + r4 * q1213);
+    f64::from_bits(p.to_bits().wrapping_add((k << 52) as u64))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Within 4 ulp of the backend's exp on [−708, 0], exactly 1 at 0, and e^−708 below.
+    #[test]
+    fn exp_nonpositive_is_exp() {
+        for i in 0..=200_000 {
+            let x = -708.0 * f64::from(i) / 200_000.0;
+            let (got, want) = (exp_nonpositive(x), exp(x));
+            assert!(
+                (got - want).abs() <= 4.0 * f64::EPSILON * want,
+                "e^{x}: {got:e} vs {want:e}"
+            );
+        }
+        for x in [
+            -1e-300,
+            -1e-17,
+            -0.5,
+            -0.346_573_590_279_972_6,
+            -0.346_573_6,
+        ] {
+            let (got, want) = (exp_nonpositive(x), exp(x));
+            assert!((got - want).abs() <= 2.0 * f64::EPSILON * want, "e^{x}");
+        }
+        assert_eq!(exp_nonpositive(0.0), 1.0);
+        let floor = exp_nonpositive(-708.0);
+        for x in [-708.5, -1e4, f64::NEG_INFINITY, f64::NAN] {
+            assert_eq!(exp_nonpositive(x), floor, "{x}");
+        }
+    }
+}

@@ -24,7 +24,8 @@ pub fn ln_gamma(x: f64) -> f64 {
 /// The principal branch W₀ of Lambert's W function for y ≥ 0: the w ≥ 0 with w·e^w = y.
 ///
 /// Halley's iteration from a log-asymptotic start, to a relative step of 1e-15 (it converges
-/// in at most a handful of steps; the loop is capped). Returns NaN for y < 0 or NaN, and
+/// in at most a handful of steps; the loop is capped); below y = 10⁻⁸, the first three terms
+/// of its series, exact to rounding. Returns NaN for y < 0 or NaN, and
 /// +∞ for y = +∞.
 #[must_use]
 pub fn lambert_w0(y: f64) -> f64 {
@@ -36,6 +37,10 @@ pub fn lambert_w0(y: f64) -> f64 {
     }
     if y == f64::INFINITY {
         return f64::INFINITY;
+    }
+    if y < 1e-8 {
+        // The series y − y² + 3y³/2 − 8y⁴/3 + …: the next term is below 3·10⁻³² of y.
+        return y * (1.0 - y * (1.0 - 1.5 * y));
     }
     let mut w = if y < 3.0 {
         crate::math::ln_1p(y) * (1.0 - 0.15 * crate::math::ln_1p(y) / (1.0 + y))

@@ -130,12 +130,20 @@ impl Htsg {
     }
 
     /// K(θ) = tan θ · erfc(τ / (2σ0 tan θ)), 0 when tan θ < 1e-6.
+    ///
+    /// Also 0 when the argument x of erfc exceeds 5.5: then K < (τ/2σ0)·e^{−x²}/(x²√π) <
+    /// 7·10⁻¹¹ for every parameter in range, f0² < 10⁻²⁰, and 1 + W0(f0²) rounds to 1, so
+    /// σ is σ0 to the last bit either way (and erfc is not paid for).
     fn k_term(&self, w: DVec3) -> f64 {
         let tan = m::sqrt(w.x * w.x + w.y * w.y) / w.z;
         if tan < 1e-6 {
             return 0.0;
         }
-        tan * erfc(self.t0() / (2.0 * self.s0() * tan))
+        let x = self.t0() / (2.0 * self.s0() * tan);
+        if x > 5.5 {
+            return 0.0;
+        }
+        tan * erfc(x)
     }
 
     /// The effective roughness σ(θi, θo) = σ0 / √(1 + W0(f0²)), f0 = (K(θi) + K(θo))/√(8π).
@@ -147,6 +155,9 @@ impl Htsg {
 
     /// Smith-type shadowing S(θ) with a = τ cot θ / (2σ0): (1 − ½erfc a)/(Λ(a) + 1),
     /// Λ(a) = ½(e^{−a²}/(a√π) − erfc a); 1 at the normal, 0 at the horizon.
+    ///
+    /// For a ≥ 6 the formula is 1 − 10⁻¹⁷ or closer, which rounds to 1: it returns 1 there
+    /// without evaluating it.
     #[must_use]
     pub fn shadowing(&self, w: DVec3) -> f64 {
         let sin = m::sqrt(w.x * w.x + w.y * w.y);
@@ -157,6 +168,9 @@ impl Htsg {
             return 1.0;
         }
         let a = self.t0() * w.z / (2.0 * self.s0() * sin);
+        if a >= 6.0 {
+            return 1.0;
+        }
         let ec = erfc(a);
         let lambda = 0.5 * (m::exp(-a * a) / (a * SQRT_PI) - ec);
         ((1.0 - 0.5 * ec) / (lambda + 1.0)).clamp(0.0, 1.0)
@@ -231,18 +245,85 @@ pub fn conductor_fresnel(c: f64, eta: f64, kappa: f64) -> f64 {
     0.5 * (fs + fp)
 }
 
+/// How many terms the series tables hold. g ≤ [`HTSG_SERIES_LIMIT`] puts the terms' peak
+/// past it only for an A so large that the whole sum is below e^−1000; those sums take the
+/// ratio recurrence (`htsg_sum_ratio`).
+const TABLE_LEN: usize = 1024;
+
+/// ln x for x ≥ 1 at compile time: x = 2^e·m with m ∈ [1/√2, √2], ln m = 2 atanh((m − 1)/(m + 1))
+/// by its series (40 terms: |s| ≤ 0.172, so the last is below 10⁻⁶⁰), within a few ulp.
+const fn ln_at_compile_time(x: f64) -> f64 {
+    let bits = x.to_bits();
+    let mut e = ((bits >> 52) & 0x7ff) as i64 - 1023;
+    let mut mant = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
+    if mant > core::f64::consts::SQRT_2 {
+        mant *= 0.5;
+        e += 1;
+    }
+    let s = (mant - 1.0) / (mant + 1.0);
+    let (s2, mut power, mut sum) = (s * s, s, 0.0);
+    let mut j = 0;
+    while j < 40 {
+        sum += power / (2 * j + 1) as f64;
+        power *= s2;
+        j += 1;
+    }
+    2.0 * sum + e as f64 * core::f64::consts::LN_2
+}
+
+/// What the series needs of each integer m ≤ [`TABLE_LEN`] + 1, made at compile time.
+struct SeriesTable {
+    /// ln m.
+    ln: [f64; TABLE_LEN + 2],
+    /// ln m! + ln m (compensated running sums of ln m, so within an ulp or two).
+    ln_fact_m: [f64; TABLE_LEN + 2],
+    /// 1/m.
+    inv: [f64; TABLE_LEN + 2],
+}
+
+static SERIES: SeriesTable = {
+    let mut t = SeriesTable {
+        ln: [0.0; TABLE_LEN + 2],
+        ln_fact_m: [0.0; TABLE_LEN + 2],
+        inv: [0.0; TABLE_LEN + 2],
+    };
+    let (mut acc, mut carry) = (0.0f64, 0.0f64);
+    let mut m = 1;
+    while m < TABLE_LEN + 2 {
+        let l = ln_at_compile_time(m as f64);
+        // Kahan: acc + carry is ln m! to well below acc's ulp.
+        let y = l - carry;
+        let next = acc + y;
+        carry = (next - acc) - y;
+        acc = next;
+        t.ln[m] = l;
+        t.ln_fact_m[m] = acc + l;
+        t.inv[m] = 1.0 / m as f64;
+        m += 1;
+    }
+    t
+};
+
+/// ln(1e-13): the series stops where its terms fall below this fraction of the largest (f
+/// is reported in f32, whose rounding is 6·10⁻⁸).
+const LN_REL_STOP: f64 = -29.933_606_208_922_594;
+
 /// Σ_{m≥1} g^m e^{−g}/m! · e^{−A/m}/m, the sum in HTSG's D (MODELS.md §7, step 3).
 ///
-/// For g ≤ [`HTSG_SERIES_LIMIT`] the exact series, from where the Poisson weights become
-/// non-negligible (g − 10√g − 10), term by term through the ratio of consecutive terms,
-/// r_k = t_{k+1}/t_k = g·k/(k+1)² · e^{A/(k(k+1))}: one exponential a term (the first term
-/// from ln Γ), in linear space with a running scale. r_k falls with k (A ≥ 0), so the terms
-/// rise to one mode and fall, and once r_k < 1 the rest of the series is at most
-/// t_{k+1}/(1 − r_k): the loop stops when that bound is below 1e-16 of the sum. Beyond the
-/// limit, the second-order expansion h(g) + (g/2)·h''(g), h(μ) = e^{−A/μ}/μ. 0 when g = 0.
+/// For g ≤ [`HTSG_SERIES_LIMIT`] the exact series. Its log-terms y_m = m ln g − ln m! − ln m −
+/// A/m are concave in m (the ratio of consecutive terms, g·m/(m+1)²·e^{A/(m(m+1))}, falls
+/// with m), so the largest term is the first m where that ratio drops below one: found by a
+/// galloping search from m ≈ g in O(log) steps, with ln m, ln m! and 1/m read from tables
+/// made at compile time. The terms are then summed outward from it, four at a time with a
+/// table-free exponential ([`crate::math::exp_nonpositive`], so the blocks vectorise), until they are
+/// below 10⁻¹³ of the largest; by concavity the neglected tails are below 4·10⁻¹² of the
+/// sum (the ratio there is at most e^{−29.9/D}, D ≤ 1024 the distance from the peak).
+/// A peak beyond the tables takes the ratio recurrence (`htsg_sum_ratio`). Beyond the
+/// limit, the second-order expansion h(g) + (g/2)·h''(g), h(μ) = e^{−A/μ}/μ. 0 when g = 0
+/// or A = ∞.
 #[must_use]
 pub fn htsg_sum(g: f64, a: f64) -> f64 {
-    if g.is_nan() || g <= 0.0 || a.is_nan() {
+    if g.is_nan() || g <= 0.0 || a.is_nan() || a == f64::INFINITY {
         return 0.0;
     }
     if g > HTSG_SERIES_LIMIT {
@@ -250,6 +331,107 @@ pub fn htsg_sum(g: f64, a: f64) -> f64 {
         let (g2, g3) = (g * g, g * g * g);
         return e / g + 0.5 * g * e * (2.0 / g3 - 4.0 * a / (g3 * g) + a * a / (g3 * g2));
     }
+    let t = &SERIES;
+    let lg = m::ln(g);
+    // ln of the ratio t_{k+1}/t_k (falling in k), and the log-term without its −g.
+    let dy = |k: usize| lg + t.ln[k] - 2.0 * t.ln[k + 1] + a * t.inv[k] * t.inv[k + 1];
+    let y = |k: usize, kf: f64| kf * lg - t.ln_fact_m[k] - a * t.inv[k];
+    let Some(peak) = first_fall(dy, (g as usize).clamp(1, TABLE_LEN)) else {
+        return htsg_sum_ratio(g, a);
+    };
+    let yp = y(peak, peak as f64);
+    let mut acc = [0.0f64; 4];
+    // Upward from the peak, four terms a block.
+    let mut k = peak;
+    loop {
+        if k + 3 > TABLE_LEN + 1 {
+            return htsg_sum_ratio(g, a);
+        }
+        let (mut d, kf) = ([0.0; 4], k as f64);
+        for (j, dj) in d.iter_mut().enumerate() {
+            *dj = y(k + j, kf + j as f64) - yp;
+        }
+        for (s, dj) in acc.iter_mut().zip(d) {
+            *s += m::exp_nonpositive(dj);
+        }
+        if d[3] < LN_REL_STOP {
+            break;
+        }
+        k += 4;
+    }
+    // Downward from just below it, to m = 1 at the most (absent terms count −∞).
+    let mut k = peak;
+    while k > 1 {
+        let (mut d, kf) = ([f64::NEG_INFINITY; 4], k as f64);
+        for (j, dj) in d.iter_mut().enumerate() {
+            if k > j + 1 {
+                *dj = y(k - 1 - j, kf - 1.0 - j as f64) - yp;
+            }
+        }
+        for (s, dj) in acc.iter_mut().zip(d) {
+            *s += m::exp_nonpositive(dj);
+        }
+        if k <= 5 || d[3] < LN_REL_STOP {
+            break;
+        }
+        k -= 4;
+    }
+    // yp − g ≤ 0 (every term is at most 1), so this cannot overflow; an underflow is a
+    // sum below 10⁻³⁰⁸, which no f32 result can tell from 0.
+    m::exp(yp - g) * ((acc[0] + acc[1]) + (acc[2] + acc[3]))
+}
+
+/// The first k ≥ 1 (at most [`TABLE_LEN`]) with `dy(k) < 0`, for a `dy` that falls with k:
+/// galloping from `guess` in steps that double, then bisection. `None` when there is none.
+fn first_fall(dy: impl Fn(usize) -> f64, guess: usize) -> Option<usize> {
+    // Bisection of (lo, hi] with dy(lo) ≥ 0 > dy(hi).
+    let bisect = |mut lo: usize, mut hi: usize| {
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            if dy(mid) >= 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        hi
+    };
+    let mut step = 1;
+    if dy(guess) < 0.0 {
+        let mut hi = guess;
+        loop {
+            if hi == 1 {
+                return Some(1);
+            }
+            let lo = hi.saturating_sub(step).max(1);
+            if dy(lo) >= 0.0 {
+                return Some(bisect(lo, hi));
+            }
+            hi = lo;
+            step *= 2;
+        }
+    }
+    let mut lo = guess;
+    loop {
+        if lo == TABLE_LEN {
+            return None;
+        }
+        let hi = (lo + step).min(TABLE_LEN);
+        if dy(hi) < 0.0 {
+            return Some(bisect(lo, hi));
+        }
+        lo = hi;
+        step *= 2;
+    }
+}
+
+/// The same sum by the ratio of consecutive terms from where the Poisson weights become
+/// non-negligible (g − 10√g − 10), r_k = t_{k+1}/t_k = g·k/(k+1)² · e^{A/(k(k+1))}: one
+/// exponential a term, in linear space with a running scale. r_k falls with k, so once
+/// r_k < 1 the rest of the series is at most t_{k+1}/(1 − r_k): the loop stops when that
+/// bound is below 1e-16 of the sum. Slower than [`htsg_sum`] (which uses it only when the
+/// terms' peak lies beyond its tables), and needs no tables.
+fn htsg_sum_ratio(g: f64, a: f64) -> f64 {
     // Terms are kept as t·e^{ln_scale}; the scale moves to the current term whenever a step
     // would take t above e^RESCALE_LN (a large A can put the mode e^{thousands} above the
     // start, and a single ratio beyond f64's range).
@@ -425,24 +607,52 @@ mod tests {
         }
     }
 
-    /// The ratio recurrence agrees with the log-space series to 1e-12 relative over g ∈
-    /// (0, 300] and A from 0 to far beyond the Poisson mode (where the sum underflows).
+    /// Both ways of summing agree with the plain log-space series over g ∈ (0, 300] and A
+    /// from 0 to far beyond the Poisson mode (where the sum underflows): the ratio
+    /// recurrence to 1e-7 (a product of up to hundreds of rounded ratios), the tabled
+    /// peak-outward sum to 1e-11 (its terms are differences
+    /// of log-terms of up to ~6000, each good to ~1e-12).
     #[test]
-    fn the_ratio_recurrence_is_the_series() {
-        for &g in &[
-            1e-6, 0.01, 0.3, 1.0, 2.5, 7.0, 18.5, 40.0, 99.0, 150.0, 299.9, 300.0,
-        ] {
-            for &a in &[0.0, 1e-3, 0.5, 3.0, 20.0, 150.0, 1e3, 1e4, 1e5, 3e6] {
-                let (got, want) = (htsg_sum(g, a), htsg_sum_log_space(g, a));
-                // Below e^−200 (1.4e-87) neither matters (see LN_ABS_TOL) and the new
-                // series stops early there.
+    fn the_fast_sums_are_the_series() {
+        let gs = (0..=120).map(|i| 1e-6 * 10f64.powf(f64::from(i) * 8.477 / 120.0));
+        for g in gs.chain([1.0, 2.5, 7.0, 18.5, 40.0, 99.0, 150.0, 299.9, 300.0]) {
+            let r#as = (0..=120).map(|j| 1e-4 * 10f64.powf(f64::from(j) * 10.5 / 120.0));
+            for a in r#as.chain([0.0, 1e-3, 0.5, 3.0, 20.0, 150.0, 1e3, 1e4, 1e5, 3e6]) {
+                let want = htsg_sum_log_space(g, a);
+                // Below e^−200 (1.4e-87) neither matters (see LN_ABS_TOL) and the ratio
+                // recurrence stops early there.
                 if want < 1e-80 {
-                    assert!(got < 1e-80, "g {g} A {a}: {got} vs {want}");
+                    assert!(htsg_sum(g, a) < 1e-80, "g {g} A {a}: {want}");
+                    assert!(htsg_sum_ratio(g, a) < 1e-80, "g {g} A {a}: {want}");
                     continue;
                 }
-                let rel = (got - want).abs() / want;
-                assert!(rel < 1e-12, "g {g} A {a}: {got} vs {want} ({rel:e})");
+                for (name, got, tol) in [
+                    ("tabled", htsg_sum(g, a), 1e-11),
+                    ("ratio", htsg_sum_ratio(g, a), 1e-7),
+                ] {
+                    let rel = (got - want).abs() / want;
+                    assert!(rel < tol, "{name}: g {g} A {a}: {got} vs {want} ({rel:e})");
+                }
             }
+        }
+    }
+
+    /// The compile-time tables against the run-time logarithm and ln Γ.
+    #[test]
+    fn series_tables_are_the_logarithms() {
+        for k in 1..TABLE_LEN + 2 {
+            let x = k as f64;
+            assert!(
+                (SERIES.ln[k] - x.ln()).abs() <= 2.0 * f64::EPSILON * x.ln(),
+                "ln {k}"
+            );
+            let want = ln_gamma(x + 1.0) + x.ln();
+            let got = SERIES.ln_fact_m[k];
+            assert!(
+                (got - want).abs() <= 1e-14 * want.max(1.0),
+                "ln {k}! + ln {k}: {got} vs {want}"
+            );
+            assert_eq!(SERIES.inv[k], 1.0 / x);
         }
     }
 
