@@ -53,7 +53,8 @@ impl Visible {
 /// f = 1/(P cos θi cos θo) · [∫ f_loc(N(φ)) ⟨N·wi⟩⟨N·wo⟩ Vi Vo dφ + cos θi cos θo ∫ f_loc(z) Vi Vo dy].
 ///
 /// The lit and seen sets are intervals with closed-form ends ([`PoulinFournier::visible`]);
-/// the diffuse part integrates in closed form and the specular part by 8-point Gauss–Legendre
+/// the diffuse part by 8-point Gauss–Legendre, exact to rounding for its degree-2
+/// trigonometric integrand, and the specular part by 8-point Gauss–Legendre
 /// on sub-intervals that grow geometrically away from the highlight's peak (so a lobe of
 /// exponent 10⁵ is resolved as well as one of 1), never across a visibility end or the
 /// lobe's cut-off. Reciprocal; energy-conserving (no inter-reflection, so energy is lost).
@@ -155,15 +156,21 @@ impl PoulinFournier {
     /// = 1 or sin(ψ + φm) respectively. ψ < 0 is the mirror image.
     #[must_use]
     pub fn visible(&self, w: DVec3) -> Visible {
-        let psi = m::atan2(w.y, w.z);
+        self.visible_at(w, m::atan2(w.y, w.z))
+    }
+
+    /// [`PoulinFournier::visible`] given ψ = atan2(w.y, w.z); sin |ψ| and cos |ψ| are taken
+    /// from w itself, sin(|ψ| + φm) by angle addition (cos φm = 1 − h, sin φm = w).
+    fn visible_at(&self, w: DVec3, psi: f64) -> Visible {
         let (pm, hw, p) = (self.phi_max, self.half_width, self.period);
         let hm1 = f64::from(self.height) - 1.0;
         let a = psi.abs();
-        let (sin_a, cos_a) = (m::sin(a), m::cos(a));
+        let r = m::sqrt(w.y * w.y + w.z * w.z);
+        let (sin_a, cos_a) = (w.y.abs() / r, w.z / r);
         let s = if a + pm >= FRAC_PI_2 {
             1.0
         } else {
-            m::sin(a + pm)
+            sin_a * -hm1 + cos_a * hw
         };
         let kappa = p * cos_a - s;
         let mut hi = pm.min(a + FRAC_PI_2);
@@ -193,7 +200,10 @@ impl PoulinFournier {
     /// the cylinder's lit-and-seen interval plus cos θi cos θo × the gap's, and the same with
     /// the local lobe cos^n α_N inside.
     fn integrals(&self, wi: DVec3, wo: DVec3) -> (f64, f64) {
-        let vis = self.visible(wi).intersect(self.visible(wo));
+        let (psi_i, psi_o) = (m::atan2(wi.y, wi.z), m::atan2(wo.y, wo.z));
+        let vis = self
+            .visible_at(wi, psi_i)
+            .intersect(self.visible_at(wo, psi_o));
         let cc = wi.z * wo.z;
         let gap = (vis.gap.1 - vis.gap.0).max(0.0);
         let (a, b) = vis.cylinder;
@@ -204,7 +214,7 @@ impl PoulinFournier {
             specular += if self.lobe.n == 0.0 {
                 d
             } else {
-                lobe_integral(wi, wo, self.lobe.n, a, b)
+                lobe_integral(wi, wo, (psi_i, psi_o), self.lobe.n, (a, b))
             };
         }
         (diffuse, specular)
@@ -213,31 +223,31 @@ impl PoulinFournier {
 
 /// The sines and cosines of the offsets ±h·x_j of the 8-point rule's nodes from a panel's
 /// midpoint, for a panel of half-width h. The nodes' own sines and cosines then follow from
-/// the midpoint's by the angle-addition formulas: one `sin_cos` a panel instead of eight.
+/// the midpoint's by the angle-addition formulas: one sine and cosine a panel instead of
+/// eight.
 #[derive(Clone, Copy)]
 struct Offsets {
     /// (sin, cos) of h·x_j.
     nodes: [(f64, f64); 4],
-    /// (sin, cos) of h itself (the panel's end from its midpoint).
-    end: (f64, f64),
 }
 
 impl Offsets {
+    /// For 0 ≤ h ≤ π/2 (a panel never spans more than the cylinder's π).
     fn new(h: f64) -> Self {
-        Self {
-            nodes: GL8_X.map(|x| m::sin_cos(h * x)),
-            end: m::sin_cos(h),
+        let mut nodes = [(0.0, 1.0); 4];
+        for (node, x) in nodes.iter_mut().zip(GL8_X) {
+            *node = m::sin_cos_small(h * x);
         }
+        Self { nodes }
     }
 
     /// The offsets of a panel twice as wide (double angles: sin 2θ = 2 sin θ cos θ,
     /// cos 2θ = 1 − 2 sin² θ, which loses nothing for the small angles of a panel).
-    fn doubled(self) -> Self {
-        let d = |(s, c): (f64, f64)| (2.0 * s * c, 1.0 - 2.0 * s * s);
-        Self {
-            nodes: self.nodes.map(d),
-            end: d(self.end),
+    fn doubled(mut self) -> Self {
+        for (s, c) in &mut self.nodes {
+            (*s, *c) = (2.0 * *s * *c, 1.0 - 2.0 * *s * *s);
         }
+        self
     }
 
     /// The 8-point rule's sum Σ w_j (g(mid − h x_j) + g(mid + h x_j)) for `g` of a node's
@@ -253,11 +263,25 @@ impl Offsets {
         sum
     }
 
-    /// (sin, cos) of the panel's end on the side of `sign` (mid + sign·h).
+    /// The 8-point rule's sum for [`LobeIntegrand`] given (sin, cos) of the midpoint, and
+    /// the integrand at the outermost node on the side of `sign` (where the lobe is lower).
+    /// The eight q come first, then the eight powers, so that the latter overlap.
     #[inline]
-    fn end_from(&self, (sm, cm): (f64, f64), sign: f64) -> (f64, f64) {
-        let (sh, ch) = (sign * self.end.0, self.end.1);
-        (sm * ch + cm * sh, cm * ch - sm * sh)
+    fn lobe_rule(&self, (sm, cm): (f64, f64), sign: f64, lobe: &LobeIntegrand) -> (f64, f64) {
+        // Nodes mid + h·x_j in 0..4, mid − h·x_j in 4..8.
+        let mut f = [0.0; 8];
+        for (j, (sx, cx)) in self.nodes.into_iter().enumerate() {
+            f[j] = lobe.q(sm * cx + cm * sx, cm * cx - sm * sx);
+            f[j + 4] = lobe.q(sm * cx - cm * sx, cm * cx + sm * sx);
+        }
+        for fj in &mut f {
+            *fj = lobe.at(*fj);
+        }
+        let mut sum = 0.0;
+        for (j, w) in GL8_W.into_iter().enumerate() {
+            sum += w * (f[j] + f[j + 4]);
+        }
+        (sum, if sign < 0.0 { f[7] } else { f[3] })
     }
 }
 
@@ -276,36 +300,67 @@ fn diffuse_integral(wi: DVec3, wo: DVec3, a: f64, b: f64) -> f64 {
     let mut total = 0.0;
     for k in 0..panels as u32 {
         let mid = a + (f64::from(k) + 0.5) * h;
-        total += 0.5 * h * offsets.rule(m::sin_cos(mid), q);
+        total += 0.5 * h * offsets.rule(m::sin_cos_small(mid), q);
     }
     total
 }
 
-/// ∫_a^b max(0, 2q − wi·wo)^n q dφ with q = (N·wi)(N·wo) ≥ 0 on [a, b]: the local
-/// Lewis-Phong lobe (r_N(wi)·wo = 2q − wi·wo) times the projected lengths.
-///
-/// q peaks at φ* = (ψi + ψo)/2 and falls monotonically away from it, so [a, b] is split at
-/// φ*, each piece is cut where the lobe reaches 0, and is covered by Gauss–Legendre panels
-/// of widths δ, 2δ, 4δ, ... from its peak end, δ the lobe's e-folding width there; the
-/// panels stop once the integrand is below 1e-16 of the running sum. Each panel costs one
-/// `sin_cos` (its midpoint): the nodes' offsets double with the panels' widths.
-fn lobe_integral(wi: DVec3, wo: DVec3, n: f64, a: f64, b: f64) -> f64 {
-    let c = wi.dot(wo);
-    let q = |s: f64, co: f64| (wi.y * s + wi.z * co).max(0.0) * (wo.y * s + wo.z * co).max(0.0);
-    let f = |s: f64, co: f64| {
-        let qq = q(s, co);
-        let v = 2.0 * qq - c;
+/// The panels of [`lobe_integral`] stop once the integrand at a panel's outermost node is
+/// below this fraction of the running sum (the integrand falls away from the peak, so the
+/// rest of the piece, at most π long, adds less than 4·10⁻¹² of it; f is reported in f32).
+const LOBE_REL_STOP: f64 = 1e-12;
+
+/// The lobe's integrand max(0, 2q − c)^n·q for one pair, q = ⟨N·wi⟩⟨N·wo⟩ at the
+/// micro-normal N = (0, sin φ, cos φ).
+struct LobeIntegrand {
+    wi: DVec3,
+    wo: DVec3,
+    /// wi·wo.
+    c: f64,
+    /// The local lobe's exponent.
+    n: f64,
+}
+
+impl LobeIntegrand {
+    /// q at N = (0, s, co).
+    #[inline(always)]
+    fn q(&self, s: f64, co: f64) -> f64 {
+        (self.wi.y * s + self.wi.z * co).max(0.0) * (self.wo.y * s + self.wo.z * co).max(0.0)
+    }
+
+    /// The integrand at a node whose q is given.
+    #[inline(always)]
+    fn at(&self, q: f64) -> f64 {
+        let v = 2.0 * q - self.c;
         if v <= 0.0 {
             0.0
         } else {
-            m::exp(n * m::ln(v.min(1.0))) * qq
+            m::exp(self.n * m::ln(v.min(1.0))) * q
         }
+    }
+}
+
+/// ∫_a^b max(0, 2q − wi·wo)^n q dφ with q = (N·wi)(N·wo) ≥ 0 on [a, b]: the local
+/// Lewis-Phong lobe (r_N(wi)·wo = 2q − wi·wo) times the projected lengths; `psi` are
+/// (ψi, ψo).
+///
+/// q peaks at φ* = (ψi + ψo)/2 and falls monotonically away from it, so [a, b] is split at
+/// φ*, each piece is cut where the lobe reaches 0 (cos 2x = wi.x·wo.x/(|wi.yz||wo.yz|) at
+/// x = φ − φ*), and is covered by Gauss–Legendre panels of widths δ, 2δ, 4δ, ... from its
+/// peak end, δ the lobe's e-folding width there; the panels stop at [`LOBE_REL_STOP`].
+/// The nodes' offsets double with the panels' widths, and every sine and cosine is of an
+/// angle within ±π/2 ([`m::sin_cos_small`]).
+fn lobe_integral(wi: DVec3, wo: DVec3, psi: (f64, f64), n: f64, (a, b): (f64, f64)) -> f64 {
+    let lobe = LobeIntegrand {
+        wi,
+        wo,
+        c: wi.dot(wo),
+        n,
     };
-    let (psi_i, psi_o) = (m::atan2(wi.y, wi.z), m::atan2(wo.y, wo.z));
     let rr = m::sqrt(wi.y * wi.y + wi.z * wi.z) * m::sqrt(wo.y * wo.y + wo.z * wo.z);
-    let peak = 0.5 * (psi_i + psi_o);
-    // Distance from φ* at which 2q = c (the lobe's cut-off).
-    let cut = 0.5 * m::acos((c / rr - m::cos(psi_i - psi_o)).clamp(-1.0, 1.0));
+    let peak = 0.5 * (psi.0 + psi.1);
+    // Distance from φ* at which 2q = c (the lobe's cut-off): 2q − c = rr·cos 2x − wi.x·wo.x.
+    let cut = 0.5 * m::acos((wi.x * wo.x / rr).clamp(-1.0, 1.0));
     let pieces: [(f64, f64); 2] = if peak > a && peak < b {
         [(peak, b), (peak, a)]
     } else if peak <= a {
@@ -319,8 +374,8 @@ fn lobe_integral(wi: DVec3, wo: DVec3, n: f64, a: f64, b: f64) -> f64 {
         let x0 = (p0 - peak).abs();
         let x1 = (p1 - peak).abs().min(cut);
         let len = x1 - x0;
-        let (s0, c0) = m::sin_cos(p0);
-        let v0 = 2.0 * q(s0, c0) - c;
+        let (s0, c0) = m::sin_cos_small(p0);
+        let v0 = 2.0 * lobe.q(s0, c0) - lobe.c;
         if len <= 0.0 || v0 <= 0.0 {
             continue;
         }
@@ -340,11 +395,11 @@ fn lobe_integral(wi: DVec3, wo: DVec3, n: f64, a: f64, b: f64) -> f64 {
             } else {
                 Offsets::new(0.5 * width)
             };
-            let mid = m::sin_cos(p0 + sign * (t0 + 0.5 * width));
-            total += 0.5 * width * offsets.rule(mid, f);
+            let mid = m::sin_cos_small(p0 + sign * (t0 + 0.5 * width));
+            let (sum, outer) = offsets.lobe_rule(mid, sign, &lobe);
+            total += 0.5 * width * sum;
             let t1 = t0 + width;
-            let (se, ce) = offsets.end_from(mid, sign);
-            if t1 >= len || f(se, ce) <= 1e-16 * total {
+            if t1 >= len || outer <= LOBE_REL_STOP * total {
                 break;
             }
             t0 = t1;
