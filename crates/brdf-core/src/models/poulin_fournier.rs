@@ -305,6 +305,35 @@ fn diffuse_integral(wi: DVec3, wo: DVec3, a: f64, b: f64) -> f64 {
     total
 }
 
+/// [`lobe_integral`]'s last panel [t0, len] of a piece (from its start p0 in the direction
+/// `sign`) whose end lies `to_cut` short of the lobe's cut-off, where the integrand behaves
+/// as (cut − x)^n: halves toward the end, each by the 8-point rule, until one adds less
+/// than [`LOBE_REL_STOP`] of the running `total` (each half adds at most 2^−n of the one
+/// before, so the rest is at most twice the last) or what is left is no longer than its
+/// distance to the cut (then the singular point is outside the rule's reach: one last
+/// panel). A single panel there is 1.5·10⁻⁴ off at n = ½, and 3·10⁻⁶ when the end is 0.02
+/// short of the cut. Returns the new total.
+fn graded_to_cut(
+    lobe: &LobeIntegrand,
+    (p0, sign): (f64, f64),
+    (t0, len): (f64, f64),
+    to_cut: f64,
+    total: f64,
+) -> f64 {
+    let (mut total, mut lo) = (total, t0);
+    loop {
+        let rest = len - lo;
+        let w = if rest <= to_cut { rest } else { 0.5 * rest };
+        let mid = m::sin_cos_small(p0 + sign * (lo + 0.5 * w));
+        let part = 0.5 * w * Offsets::new(0.5 * w).lobe_rule(mid, sign, lobe).0;
+        total += part;
+        lo += w;
+        if w == rest || part <= LOBE_REL_STOP * total || len - lo <= 1e-15 * len {
+            return total;
+        }
+    }
+}
+
 /// The panels of [`lobe_integral`] stop once the integrand at a panel's outermost node is
 /// below this fraction of the running sum (the integrand falls away from the peak, so the
 /// rest of the piece, at most π long, adds less than 4·10⁻¹² of it; f is reported in f32).
@@ -328,15 +357,16 @@ impl LobeIntegrand {
         (self.wi.y * s + self.wi.z * co).max(0.0) * (self.wo.y * s + self.wo.z * co).max(0.0)
     }
 
-    /// The integrand at a node whose q is given.
+    /// The integrand at a node whose q is given, without a branch or a call (v ≤ 1, so
+    /// n ln v ≤ 0: [`m::ln_positive`] and [`m::exp_nonpositive`]), so that a panel's eight
+    /// vectorise. A power below e^−700 is 0 (it is below 10⁻³⁰⁰ of the lobe's peak, and
+    /// kept, it would make subnormal products, which cost a hundred cycles each).
     #[inline(always)]
     fn at(&self, q: f64) -> f64 {
         let v = 2.0 * q - self.c;
-        if v <= 0.0 {
-            0.0
-        } else {
-            m::exp(self.n * m::ln(v.min(1.0))) * q
-        }
+        let y = self.n * m::ln_positive(v.min(1.0));
+        let p = m::exp_nonpositive(y) * q;
+        if v > 0.0 && y > -700.0 { p } else { 0.0 }
     }
 }
 
@@ -372,7 +402,10 @@ fn lobe_integral(wi: DVec3, wo: DVec3, psi: (f64, f64), n: f64, (a, b): (f64, f6
     for (p0, p1) in pieces {
         let sign = if p1 >= p0 { 1.0 } else { -1.0 };
         let x0 = (p0 - peak).abs();
+        // v^n has a singular derivative at the cut-off (n not an integer): a last panel that
+        // ends at it, or closer to it than its own width, is graded toward its end.
         let x1 = (p1 - peak).abs().min(cut);
+        let to_cut = cut - x1;
         let len = x1 - x0;
         let (s0, c0) = m::sin_cos_small(p0);
         let v0 = 2.0 * lobe.q(s0, c0) - lobe.c;
@@ -390,6 +423,10 @@ fn lobe_integral(wi: DVec3, wo: DVec3, psi: (f64, f64), n: f64, (a, b): (f64, f6
         let mut t0 = 0.0;
         loop {
             let width = delta.min(len - t0);
+            if width == len - t0 && to_cut < width {
+                total = graded_to_cut(&lobe, (p0, sign), (t0, len), to_cut, total);
+                break;
+            }
             let offsets = if width == delta {
                 full
             } else {
@@ -522,6 +559,73 @@ mod tests {
                     (lhs - rhs).abs() <= 1e-10 * rhs.max(1e-300),
                     "h={h} d={d} theta={t} phi={p}: {lhs} vs {rhs}"
                 );
+            }
+        }
+    }
+
+    /// The lobe integral (graded panels, the branch-free power and sines) against a plain
+    /// one with the backend's functions: split at the peak and at the cut-offs peak ± cut,
+    /// each piece mapped by the smootherstep t ↦ 6t⁵ − 15t⁴ + 10t³ (which flattens the
+    /// algebraic end points (cut − x)^n) and integrated by 8-point Gauss–Legendre on 1 500
+    /// equal panels; at 100 quasi-random pairs (to 89.9°) for exponents from ½ to 10⁵ and
+    /// three profiles, to 1e-8 relative.
+    #[test]
+    fn lobe_integral_matches_a_plain_quadrature() {
+        let plain = |wi: DVec3, wo: DVec3, n: f64, a: f64, b: f64, peak: f64| {
+            let c = wi.dot(wo);
+            let f = |phi: f64| {
+                let (s, co) = (m::sin(phi), m::cos(phi));
+                let q = (wi.y * s + wi.z * co).max(0.0) * (wo.y * s + wo.z * co).max(0.0);
+                let v = 2.0 * q - c;
+                if v <= 0.0 {
+                    0.0
+                } else {
+                    m::pow(v.min(1.0), n) * q
+                }
+            };
+            let rr = m::sqrt(wi.y * wi.y + wi.z * wi.z) * m::sqrt(wo.y * wo.y + wo.z * wo.z);
+            let cut = 0.5 * m::acos((wi.x * wo.x / rr).clamp(-1.0, 1.0));
+            let gl = GaussLegendre::new(8);
+            let mut cuts = [a, peak - cut, peak, peak + cut, b].map(|x| x.clamp(a, b));
+            cuts.sort_by(f64::total_cmp);
+            let mut total = 0.0;
+            for w in cuts.windows(2) {
+                let (l, r) = (w[0], w[1]);
+                let h = 1.0 / 1500.0;
+                for k in 0..1500 {
+                    let t0 = f64::from(k) * h;
+                    for (x, wt) in gl.nodes().iter().zip(gl.weights()) {
+                        let t = t0 + 0.5 * h * (1.0 + x);
+                        let g = t * t * t * (10.0 + t * (-15.0 + 6.0 * t));
+                        let dg = 30.0 * t * t * (1.0 - t) * (1.0 - t);
+                        total += 0.5 * h * wt * f(l + (r - l) * g) * (r - l) * dg;
+                    }
+                }
+            }
+            total
+        };
+        for (h, d) in [(1.0f32, 0.0f32), (0.3, 0.5), (0.8, 2.0)] {
+            for n in [0.5, 1.0, 3.0, 50.0, 1000.0, 1e5] {
+                let b = PoulinFournier::new(h, d, Vec3::ZERO, Vec3::ONE, n as f32).unwrap();
+                for k in 0..100 {
+                    let u = |i: u32| (f64::from(k * 4 + i) * 0.618_033_988_749_895).fract();
+                    let (wi, wo) = (
+                        dir(u(0) * 89.9, u(1) * 360.0),
+                        dir(u(2) * 89.9, u(3) * 360.0),
+                    );
+                    let (pi, po) = (m::atan2(wi.y, wi.z), m::atan2(wo.y, wo.z));
+                    let vis = b.visible(wi).intersect(b.visible(wo));
+                    let (lo, hi) = vis.cylinder;
+                    if hi <= lo {
+                        continue;
+                    }
+                    let got = lobe_integral(wi, wo, (pi, po), n, (lo, hi));
+                    let want = plain(wi, wo, n, lo, hi, 0.5 * (pi + po));
+                    assert!(
+                        (got - want).abs() <= 1e-8 * want + 1e-300,
+                        "h={h} d={d} n={n} pair {k}: {got:e} vs {want:e}"
+                    );
+                }
             }
         }
     }
