@@ -24,7 +24,7 @@ pub fn ln_gamma(x: f64) -> f64 {
 /// The principal branch W₀ of Lambert's W function for y ≥ 0: the w ≥ 0 with w·e^w = y.
 ///
 /// Halley's iteration from a log-asymptotic start, to a relative step of 1e-15 (it converges
-/// in at most a handful of steps; the loop is capped); below y = 10⁻⁸, the first three terms
+/// in at most a handful of steps; the loop is capped); below y = 10⁻³, the first six terms
 /// of its series, exact to rounding. Returns NaN for y < 0 or NaN, and
 /// +∞ for y = +∞.
 #[must_use]
@@ -38,9 +38,10 @@ pub fn lambert_w0(y: f64) -> f64 {
     if y == f64::INFINITY {
         return f64::INFINITY;
     }
-    if y < 1e-8 {
-        // The series y − y² + 3y³/2 − 8y⁴/3 + …: the next term is below 3·10⁻³² of y.
-        return y * (1.0 - y * (1.0 - 1.5 * y));
+    if y < 1e-3 {
+        // The series Σ (−n)^{n−1} yⁿ/n! = y − y² + 3y³/2 − 8y⁴/3 + 125y⁵/24 − 54y⁶/5 + …:
+        // the next term, 16807y⁷/720, is below 3·10⁻¹⁷ of y.
+        return y * (1.0 - y * (1.0 - y * (1.5 - y * (8.0 / 3.0 - y * (125.0 / 24.0 - y * 10.8)))));
     }
     let mut w = if y < 3.0 {
         crate::math::ln_1p(y) * (1.0 - 0.15 * crate::math::ln_1p(y) / (1.0 + y))
@@ -77,6 +78,9 @@ mod tests {
         // Reference values: Newton on w·e^w = y in 50-digit decimal arithmetic.
         for (y, w) in [
             (1e-10, 9.999_999_999e-11),
+            // Either side of the series' end at 1e-3.
+            (9.99e-4, 9.980_034_918_536_543e-4),
+            (1.001e-3, 9.999_995_008_323_755e-4),
             (0.1, 0.091_276_527_160_862_26),
             (1.0, 0.567_143_290_409_783_8),
             (core::f64::consts::E, 1.0),

@@ -129,28 +129,46 @@ impl Htsg {
         f64::from(self.tau)
     }
 
-    /// K(θ) = tan θ · erfc(τ / (2σ0 tan θ)), 0 when tan θ < 1e-6.
+    /// K(θ) = tan θ · erfc(τ / (2σ0 tan θ)) and the shadowing S(θ) of one direction (z > 0),
+    /// which share erfc: K's argument τ/(2σ0 tan θ) is S's a = τ cot θ/(2σ0).
     ///
-    /// Also 0 when the argument x of erfc exceeds 5.5: then K < (τ/2σ0)·e^{−x²}/(x²√π) <
-    /// 7·10⁻¹¹ for every parameter in range, f0² < 10⁻²⁰, and 1 + W0(f0²) rounds to 1, so
-    /// σ is σ0 to the last bit either way (and erfc is not paid for).
-    fn k_term(&self, w: DVec3) -> f64 {
-        let tan = m::sqrt(w.x * w.x + w.y * w.y) / w.z;
+    /// K is 0 when tan θ < 1e-6, and when a exceeds 5.5 (erfc is then not paid for): there
+    /// K < (τ/2σ0)·e^{−a²}/(a²√π) < 7·10⁻¹¹ for every parameter in range. When the other
+    /// direction's K is as small, f0² < 10⁻²⁰ and 1 + W0(f0²) rounds to 1: σ is σ0 to the
+    /// last bit either way; otherwise σ moves by less than f0·3·10⁻¹¹/(1 + W0(f0²)), below
+    /// 2·10⁻⁹ relative even for f0 ≈ 2000 (the other direction at the 10⁻⁴ grazing floor).
+    /// S is 1 for a ≥ 6, where its formula is 1 − 10⁻¹⁷ or closer, which rounds to 1.
+    fn k_and_shadowing(&self, w: DVec3) -> (f64, f64) {
+        let sin = m::sqrt(w.x * w.x + w.y * w.y);
+        if w.z <= 0.0 {
+            return (0.0, 0.0);
+        }
+        let tan = sin / w.z;
         if tan < 1e-6 {
-            return 0.0;
+            // a > τ/(2σ0·10⁻⁶) ≥ 2500 here: S is 1.
+            return (0.0, 1.0);
         }
-        let x = self.t0() / (2.0 * self.s0() * tan);
-        if x > 5.5 {
-            return 0.0;
+        let a = self.t0() * w.z / (2.0 * self.s0() * sin);
+        if a >= 6.0 {
+            return (0.0, 1.0);
         }
-        tan * erfc(x)
+        let ec = erfc(a);
+        let k = if a > 5.5 { 0.0 } else { tan * ec };
+        let lambda = 0.5 * (m::exp(-a * a) / (a * SQRT_PI) - ec);
+        (k, ((1.0 - 0.5 * ec) / (lambda + 1.0)).clamp(0.0, 1.0))
     }
 
-    /// The effective roughness σ(θi, θo) = σ0 / √(1 + W0(f0²)), f0 = (K(θi) + K(θo))/√(8π).
+    /// σ0 / √(1 + W0(f0²)), f0 = (K(θi) + K(θo))/√(8π).
+    fn sigma_of(&self, k_sum: f64) -> f64 {
+        let f0 = k_sum / m::sqrt(8.0 * PI);
+        self.s0() / m::sqrt(1.0 + lambert_w0(f0 * f0))
+    }
+
+    /// The effective roughness σ(θi, θo) = σ0 / √(1 + W0(f0²)), f0 = (K(θi) + K(θo))/√(8π),
+    /// K(θ) = tan θ · erfc(τ / (2σ0 tan θ)).
     #[must_use]
     pub fn effective_roughness(&self, wi: DVec3, wo: DVec3) -> f64 {
-        let f0 = (self.k_term(wi) + self.k_term(wo)) / m::sqrt(8.0 * PI);
-        self.s0() / m::sqrt(1.0 + lambert_w0(f0 * f0))
+        self.sigma_of(self.k_and_shadowing(wi).0 + self.k_and_shadowing(wo).0)
     }
 
     /// Smith-type shadowing S(θ) with a = τ cot θ / (2σ0): (1 − ½erfc a)/(Λ(a) + 1),
@@ -160,29 +178,19 @@ impl Htsg {
     /// without evaluating it.
     #[must_use]
     pub fn shadowing(&self, w: DVec3) -> f64 {
-        let sin = m::sqrt(w.x * w.x + w.y * w.y);
-        if w.z <= 0.0 {
-            return 0.0;
-        }
-        if sin <= 0.0 {
-            return 1.0;
-        }
-        let a = self.t0() * w.z / (2.0 * self.s0() * sin);
-        if a >= 6.0 {
-            return 1.0;
-        }
-        let ec = erfc(a);
-        let lambda = 0.5 * (m::exp(-a * a) / (a * SQRT_PI) - ec);
-        ((1.0 - 0.5 * ec) / (lambda + 1.0)).clamp(0.0, 1.0)
+        self.k_and_shadowing(w).1
     }
 
-    fn geometry(&self, wi: DVec3, wo: DVec3) -> Geometry {
+    /// The pair's geometry and its shadowing S(θi)·S(θo).
+    fn geometry(&self, wi: DVec3, wo: DVec3) -> (Geometry, f64) {
+        let ((ki, si), (ko, so)) = (self.k_and_shadowing(wi), self.k_and_shadowing(wo));
         let (sx, sy) = (wi.x + wo.x, wi.y + wo.y);
-        Geometry {
-            sigma: self.effective_roughness(wi, wo),
+        let geo = Geometry {
+            sigma: self.sigma_of(ki + ko),
             vz: wi.z + wo.z,
             vxy2: sx * sx + sy * sy,
-        }
+        };
+        (geo, si * so)
     }
 
     /// The directional-diffuse distribution D for one wavelength (the sum, times its
@@ -206,8 +214,8 @@ impl Htsg {
     }
 
     fn specular(&self, wi: DVec3) -> DVec3 {
-        let sigma = self.effective_roughness(wi, wi);
-        let s = self.shadowing(wi);
+        let (k, s) = self.k_and_shadowing(wi);
+        let sigma = self.sigma_of(2.0 * k);
         let f = self.fresnel(wi.z);
         let l = self.lambda.as_dvec3();
         let gs = |lambda: f64| {
@@ -304,6 +312,10 @@ static SERIES: SeriesTable = {
     t
 };
 
+/// How many terms [`htsg_sum`] evaluates at a time (one SSE2 vector: the first terms past
+/// a fast-falling peak are not wasted in fours).
+const BLOCK: usize = 2;
+
 /// ln(1e-13): the series stops where its terms fall below this fraction of the largest (f
 /// is reported in f32, whose rounding is 6·10⁻⁸).
 const LN_REL_STOP: f64 = -29.933_606_208_922_594;
@@ -314,7 +326,7 @@ const LN_REL_STOP: f64 = -29.933_606_208_922_594;
 /// A/m are concave in m (the ratio of consecutive terms, g·m/(m+1)²·e^{A/(m(m+1))}, falls
 /// with m), so the largest term is the first m where that ratio drops below one: found by a
 /// galloping search from m ≈ g in O(log) steps, with ln m, ln m! and 1/m read from tables
-/// made at compile time. The terms are then summed outward from it, four at a time with a
+/// made at compile time. The terms are then summed outward from it, `BLOCK` (2) at a time with a
 /// table-free exponential ([`crate::math::exp_nonpositive`], so the blocks vectorise), until they are
 /// below 10⁻¹³ of the largest; by concavity the neglected tails are below 4·10⁻¹² of the
 /// sum (the ratio there is at most e^{−29.9/D}, D ≤ 1024 the distance from the peak).
@@ -340,29 +352,29 @@ pub fn htsg_sum(g: f64, a: f64) -> f64 {
         return htsg_sum_ratio(g, a);
     };
     let yp = y(peak, peak as f64);
-    let mut acc = [0.0f64; 4];
-    // Upward from the peak, four terms a block.
+    let mut acc = [0.0f64; BLOCK];
+    // Upward from the peak, BLOCK terms at a time.
     let mut k = peak;
     loop {
-        if k + 3 > TABLE_LEN + 1 {
+        if k + BLOCK > TABLE_LEN + 2 {
             return htsg_sum_ratio(g, a);
         }
-        let (mut d, kf) = ([0.0; 4], k as f64);
+        let (mut d, kf) = ([0.0; BLOCK], k as f64);
         for (j, dj) in d.iter_mut().enumerate() {
             *dj = y(k + j, kf + j as f64) - yp;
         }
         for (s, dj) in acc.iter_mut().zip(d) {
             *s += m::exp_nonpositive(dj);
         }
-        if d[3] < LN_REL_STOP {
+        if d[BLOCK - 1] < LN_REL_STOP {
             break;
         }
-        k += 4;
+        k += BLOCK;
     }
     // Downward from just below it, to m = 1 at the most (absent terms count −∞).
     let mut k = peak;
     while k > 1 {
-        let (mut d, kf) = ([f64::NEG_INFINITY; 4], k as f64);
+        let (mut d, kf) = ([f64::NEG_INFINITY; BLOCK], k as f64);
         for (j, dj) in d.iter_mut().enumerate() {
             if k > j + 1 {
                 *dj = y(k - 1 - j, kf - 1.0 - j as f64) - yp;
@@ -371,14 +383,14 @@ pub fn htsg_sum(g: f64, a: f64) -> f64 {
         for (s, dj) in acc.iter_mut().zip(d) {
             *s += m::exp_nonpositive(dj);
         }
-        if k <= 5 || d[3] < LN_REL_STOP {
+        if k <= BLOCK + 1 || d[BLOCK - 1] < LN_REL_STOP {
             break;
         }
-        k -= 4;
+        k -= BLOCK;
     }
     // yp − g ≤ 0 (every term is at most 1), so this cannot overflow; an underflow is a
     // sum below 10⁻³⁰⁸, which no f32 result can tell from 0.
-    m::exp(yp - g) * ((acc[0] + acc[1]) + (acc[2] + acc[3]))
+    m::exp(yp - g) * acc.iter().sum::<f64>()
 }
 
 /// The first k ≥ 1 (at most [`TABLE_LEN`]) with `dy(k) < 0`, for a `dy` that falls with k:
@@ -528,11 +540,10 @@ impl Brdf for Htsg {
         let Some((wi, wo)) = upper_pair(wi, wo) else {
             return Vec3::ZERO;
         };
-        let geo = self.geometry(wi, wo);
+        let (geo, s) = self.geometry(wi, wo);
         let c = wi.dot(wo);
         let gf = (2.0 + 2.0 * c) / geo.vz;
         let g = gf * gf;
-        let s = self.shadowing(wi) * self.shadowing(wo);
         let common = g * s * FRAC_1_PI / (wi.z * wo.z);
         let l = self.lambda.as_dvec3();
         let d = DVec3::new(
