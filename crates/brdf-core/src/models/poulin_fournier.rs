@@ -55,8 +55,9 @@ impl Visible {
 /// The lit and seen sets are intervals with closed-form ends ([`PoulinFournier::visible`]);
 /// the diffuse part integrates in closed form (one exact Gauss–Legendre panel on the short
 /// intervals where that form cancels). The specular part is split at the highlight's peak;
-/// for n ≥ 4 a piece from the peak is integrated in the variable that makes the lobe an
-/// exact Gaussian, by 16 Gauss–Legendre nodes fixed per material, and otherwise by 8-point
+/// for n ≥ 4 each piece is integrated in the variable that makes the lobe an exact
+/// Gaussian, by 16 Gauss–Legendre nodes (fixed per material for a piece from the peak that
+/// reaches the lobe's tail), and for smaller n by 8-point
 /// Gauss–Legendre on sub-intervals that grow geometrically away from the peak (so a lobe of
 /// exponent 10⁵ is resolved as well as one of 1), graded toward the lobe's cut-off, never
 /// across a visibility end. Reciprocal; energy-conserving (no inter-reflection, so energy
@@ -336,12 +337,13 @@ const LOBE_NODES: usize = 16;
 /// ∫ v^n q dx = vp^n ∫ e^{−y²} · (vp E + wi·wo)/2 · (y E/n) / √(D (k − D)) dy,
 ///
 /// whose second factor is smooth in y (the lobe's cut-off, where v^n has a singular
-/// derivative, is y = ∞): 16-point Gauss–Legendre on [0, min(y1, 6)] (e^−36 < 3·10⁻¹⁶
-/// beyond) for a piece that starts at the peak. One whose visible end is past y = 6 — most
-/// of them — uses nodes fixed per material, with E, D, e^{−y²} and the weights stored: a
-/// square root and a division a node, no transcendental function; a shorter one computes
-/// them at its nodes. A piece that starts away from the peak (the peak is not visible)
-/// starts steep in y, where 16 nodes do not suffice: the graded panels take it.
+/// derivative, is y = ∞): 16-point Gauss–Legendre on [y0, min(y1, √(y0² + 36))] (beyond,
+/// e^{−y²} is below e^−36 of its value at y0; 16 nodes integrate even a pure e^{−36t} on
+/// [0, 1] to 10⁻¹⁰). A piece from the peak (y0 = 0) whose visible end is past y = 6 — the
+/// common case — uses nodes fixed per material, with E, D, e^{−y²} and the weights stored:
+/// a square root and a division a node, no transcendental function; any other piece (cut
+/// short by visibility, or starting away from a peak that is not visible) computes them at
+/// its nodes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct LobeTable {
     n: f64,
@@ -399,34 +401,41 @@ impl LobeTable {
         }
     }
 
-    /// ∫ v^n q dx / vp^n over x ∈ [0, x1] (x1 ≤ π/2), a piece from the peak.
-    fn piece(&self, lobe: &LobeIntegrand, vp: f64, rr: f64, x1: f64) -> f64 {
-        if x1 <= 0.0 {
-            return 0.0;
-        }
+    /// ∫ v^n q dx over x ∈ [x0, x1] (0 ≤ x0 < x1 ≤ π/2) as (s, y0²) with the integral
+    /// vp^n·e^{−y0²}·s: the factor e^{−y0²} is kept apart, so that a piece far down the lobe
+    /// keeps its relative precision until the product itself underflows.
+    fn piece(&self, lobe: &LobeIntegrand, vp: f64, rr: f64, (x0, x1): (f64, f64)) -> (f64, f64) {
         let k = 2.0 * rr / vp;
-        let y1 = self.y_at(k, x1).min(Self::Y_MAX);
+        let y0 = if x0 > 0.0 { self.y_at(k, x0) } else { 0.0 };
+        if x1 <= x0 || y0 == f64::INFINITY {
+            return (0.0, 0.0);
+        }
+        // Up to where e^{−y²} is e^−36 below its value at y0.
+        let y0s = y0 * y0;
+        let y1 = self
+            .y_at(k, x1)
+            .min(m::sqrt(y0s + Self::Y_MAX * Self::Y_MAX));
         let c = lobe.c;
         let mut sum = 0.0;
-        if y1 == Self::Y_MAX {
+        if y0 == 0.0 && y1 == Self::Y_MAX {
             for j in 0..LOBE_NODES {
                 let d = self.d[j];
                 sum += self.p[j] * (vp * self.e[j] + c) / m::sqrt(d * (k - d));
             }
-            return sum;
+            return (sum, 0.0);
         }
-        let half = 0.5 * y1;
+        let (mid, half) = (0.5 * (y0 + y1), 0.5 * (y1 - y0));
         for j in 0..LOBE_NODES {
-            let y = half * (1.0 + self.x[j]);
+            let y = mid + half * self.x[j];
             let z = y * y / self.n;
             let e = m::exp_nonpositive(-z);
             // 1 − e^{−z} to full relative precision: its series below z = 0.01.
             let series = z * (1.0 - z * (0.5 - z * (1.0 / 6.0 - z * (1.0 / 24.0 - z / 120.0))));
             let d = if z < 0.01 { series } else { 1.0 - e };
-            let g = m::exp_nonpositive(-y * y) * y * e / (2.0 * self.n);
+            let g = m::exp_nonpositive(y0s - y * y) * y * e / (2.0 * self.n);
             sum += half * self.w[j] * g * (vp * e + c) / m::sqrt(d * (k - d));
         }
-        sum
+        (sum, y0s)
     }
 }
 
@@ -500,9 +509,11 @@ impl LobeIntegrand {
 /// (ψi, ψo).
 ///
 /// q peaks at φ* = (ψi + ψo)/2 and falls monotonically away from it, so [a, b] is split at
-/// φ*, each piece is cut where the lobe reaches 0 (cos 2x = wi.x·wo.x/(|wi.yz||wo.yz|) at
-/// x = φ − φ*), and is covered by Gauss–Legendre panels of widths δ, 2δ, 4δ, ... from its
-/// peak end, δ the lobe's e-folding width there; the panels stop at [`LOBE_REL_STOP`].
+/// φ*. With a `table` (n ≥ [`LobeTable::N_MIN`]) each piece is integrated in the lobe's
+/// Gaussian variable ([`LobeTable::piece`]). Otherwise each piece is cut where the lobe
+/// reaches 0 (cos 2x = wi.x·wo.x/(|wi.yz||wo.yz|) at x = φ − φ*), and is covered by
+/// Gauss–Legendre panels of widths δ, 2δ, 4δ, ... from its peak end, δ the lobe's e-folding
+/// width there; the panels stop at [`LOBE_REL_STOP`].
 /// The nodes' offsets double with the panels' widths, and every sine and cosine is of an
 /// angle within ±π/2 ([`m::sin_cos_small`]).
 fn lobe_integral(
@@ -537,9 +548,16 @@ fn lobe_integral(
     for (p0, p1) in pieces {
         let sign = if p1 >= p0 { 1.0 } else { -1.0 };
         let x0 = (p0 - peak).abs();
-        if let Some(t) = table.filter(|_| x0 == 0.0 && vp > 0.0) {
-            let vpn = m::exp_nonpositive(n * m::ln_positive(vp.min(1.0)));
-            total += vpn * t.piece(&lobe, vp, rr, (p1 - peak).abs());
+        if let Some(t) = table.filter(|_| vp > 0.0) {
+            let (sum, y0s) = t.piece(&lobe, vp, rr, (x0, (p1 - peak).abs()));
+            if sum > 0.0 {
+                let ln = n * m::ln_positive(vp.min(1.0)) - y0s;
+                total += if ln > -700.0 {
+                    m::exp_nonpositive(ln) * sum
+                } else {
+                    0.0
+                };
+            }
             continue;
         }
         // v^n has a singular derivative at the cut-off (n not an integer): a last panel that
@@ -709,7 +727,8 @@ mod tests {
     /// each piece mapped by the smootherstep t ↦ 6t⁵ − 15t⁴ + 10t³ (which flattens the
     /// algebraic end points (cut − x)^n) and integrated by 8-point Gauss–Legendre on 1 500
     /// equal panels; at 100 quasi-random pairs (to 89.9°) for exponents from ½ to 10⁵ and
-    /// three profiles, to 1e-8 relative.
+    /// three profiles (pairs whose peak is not visible among them), to 1e-8 relative, with
+    /// the Gaussian variable's table where n allows it and with the panels.
     #[test]
     fn lobe_integral_matches_a_plain_quadrature() {
         let plain = |wi: DVec3, wo: DVec3, n: f64, a: f64, b: f64, peak: f64| {
@@ -745,6 +764,7 @@ mod tests {
             }
             total
         };
+        let mut hidden_peaks = 0;
         for (h, d) in [(1.0f32, 0.0f32), (0.3, 0.5), (0.8, 2.0)] {
             for n in [0.5, 1.0, 3.0, 4.0, 10.0, 50.0, 1000.0, 1e5] {
                 let b = PoulinFournier::new(h, d, Vec3::ZERO, Vec3::ONE, n as f32).unwrap();
@@ -760,7 +780,9 @@ mod tests {
                     if hi <= lo {
                         continue;
                     }
-                    let want = plain(wi, wo, n, lo, hi, 0.5 * (pi + po));
+                    let peak = 0.5 * (pi + po);
+                    hidden_peaks += usize::from(peak <= lo || peak >= hi);
+                    let want = plain(wi, wo, n, lo, hi, peak);
                     // The Gaussian variable's table where n allows it, and the panels.
                     for table in [b.table.as_ref(), None] {
                         let got = lobe_integral(wi, wo, (pi, po), n, table, (lo, hi));
@@ -773,6 +795,8 @@ mod tests {
                 }
             }
         }
+        // Pieces that start away from a peak that is not visible were among them.
+        assert!(hidden_peaks > 100, "{hidden_peaks}");
     }
 
     /// The diffuse integral (closed form, or one panel below L = 0.05) against 8-point
