@@ -443,8 +443,12 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         }
         consider(seed.0, seed.1.clamp(lo, hi));
         // Peak hints: inside the node, or projected onto its closest point (a lobe peaked just
-        // outside is largest on the near edge).
-        for w in &self.hints {
+        // outside is largest on the near edge). A hint inside the node is also climbed from
+        // below, whatever its rank: in a chart whose Jacobian vanishes at the rim, a lobe
+        // peaked on the rim has a small height there and its maximum just inside, which a
+        // climb from the grid's best points (on the diffuse plateau) never reaches.
+        let mut inside: [Option<(f64, DVec2)>; 8] = [None; 8];
+        for (k, w) in self.hints.iter().enumerate() {
             let p = match map {
                 DiskMap::Orthographic => DVec2::new(w.x, w.y),
                 DiskMap::Concentric => {
@@ -456,7 +460,11 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
                 continue;
             };
             let q = prop.coordinates(map, wc).clamp(lo, hi);
-            consider(self.height(prop, rect, q), q);
+            let h = self.height(prop, rect, q);
+            consider(h, q);
+            if pc == p && k < inside.len() {
+                inside[k] = Some((h, q));
+            }
         }
         // The three searches are independent: run them side by side (the largest of three
         // is the same in any order).
@@ -473,7 +481,12 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             || climb(best[0]),
             || join(par, || climb(best[1]), || climb(best[2])),
         );
-        best[0].0.max(0.0).max(h0).max(h1).max(h2) * self.config.bound_safety
+        let from_hints = inside
+            .iter()
+            .flatten()
+            .map(|&x| climb(x))
+            .fold(0.0, f64::max);
+        best[0].0.max(0.0).max(h0).max(h1).max(h2).max(from_hints) * self.config.bound_safety
     }
 
     /// Looks at f along the node's own stretch of the rim ([`rim_points`]: its arcs of the
