@@ -9,16 +9,17 @@
 mod common;
 
 use brdf_sampling::glam::{Vec2, Vec3};
+use brdf_sampling::quadtree_sampler::uniform_f32;
 use brdf_sampling::warp::sample_cosine_hemisphere;
 use criterion::{BenchmarkId, Criterion, Throughput};
-use rand_core::{Rng, SeedableRng};
+use rand_core::SeedableRng;
 use std::hint::black_box;
 
 const BATCH: usize = 1024;
 
 fn bench(c: &mut Criterion) {
     let mut rng = rand_pcg::Pcg64::seed_from_u64(16);
-    let mut unit = || (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
+    let mut unit = || uniform_f32(&mut rng);
     let pairs: Vec<(Vec3, Vec3)> = (0..BATCH)
         .map(|_| {
             let wi = sample_cosine_hemisphere(Vec2::new(unit(), unit()));

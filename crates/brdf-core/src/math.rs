@@ -59,6 +59,11 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
     }
 }
 
+/// ln 2 in two parts: `LN2_HI` has its low bits zero, so k·`LN2_HI` is exact for the |k| of
+/// an f64 exponent, and `LN2_LO` carries the rest (Cody and Waite's reduction).
+const LN2_HI: f64 = 0.693_147_180_369_123_8;
+const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
+
 /// e^x for x ≤ 0, in plain arithmetic: no table, no branch and no call, so a loop of them
 /// vectorises (the HTSG series sums tens of such terms per evaluation).
 ///
@@ -72,8 +77,6 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
 pub fn exp_nonpositive(x: f64) -> f64 {
     // 1.5·2^52: adding it rounds x·log2(e) to an integer held in the low mantissa bits.
     const SHIFT: f64 = 6_755_399_441_055_744.0;
-    const LN2_HI: f64 = 0.693_147_180_369_123_8;
-    const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
     let x = x.max(-708.0);
     let kf = x * core::f64::consts::LOG2_E + SHIFT;
     let kd = kf - SHIFT;
@@ -137,8 +140,6 @@ pub fn sin_cos_small(theta: f64) -> (f64, f64) {
 pub fn ln_positive(x: f64) -> f64 {
     const MANTISSA: u64 = 0x000f_ffff_ffff_ffff;
     const ONE: u64 = 0x3ff0_0000_0000_0000;
-    const LN2_HI: f64 = 0.693_147_180_369_123_8;
-    const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
     let bits = x.max(f64::MIN_POSITIVE).to_bits();
     let m1 = f64::from_bits((bits & MANTISSA) | ONE);
     let big = m1 > core::f64::consts::SQRT_2;

@@ -447,7 +447,8 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         // below, whatever its rank: in a chart whose Jacobian vanishes at the rim, a lobe
         // peaked on the rim has a small height there and its maximum just inside, which a
         // climb from the grid's best points (on the diffuse plateau) never reaches.
-        let mut inside: [Option<(f64, DVec2)>; 8] = [None; 8];
+        // (`PeakHints` holds at most four.)
+        let mut inside: [Option<(f64, DVec2)>; 4] = [None; 4];
         for (k, w) in self.hints.iter().enumerate() {
             let p = match map {
                 DiskMap::Orthographic => DVec2::new(w.x, w.y),

@@ -552,8 +552,8 @@ fn lobe_integral(
     let rr = m::sqrt(wi.y * wi.y + wi.z * wi.z) * m::sqrt(wo.y * wo.y + wo.z * wo.z);
     let peak = 0.5 * (psi.0 + psi.1);
     // Distance from φ* at which 2q = c (the lobe's cut-off): 2q − c = rr·cos 2x − wi.x·wo.x
-    // (only the panels need it).
-    let cut = || 0.5 * m::acos((wi.x * wo.x / rr).clamp(-1.0, 1.0));
+    // (only the panels need it: found once, when first asked for).
+    let mut cut = None;
     let pieces: [(f64, f64); 2] = if peak > a && peak < b {
         [(peak, b), (peak, a)]
     } else if peak <= a {
@@ -561,18 +561,19 @@ fn lobe_integral(
     } else {
         [(b, a), (b, b)]
     };
-    // v = vp − 2·rr·sin²x at x = φ − φ*, vp its value at the peak.
+    // v = vp − 2·rr·sin²x at x = φ − φ*, vp its value at the peak; n ln vp once for both
+    // pieces.
     let vp = rr - wi.x * wo.x;
+    let table = table.filter(|_| vp > 0.0);
+    let ln_vpn = n * m::ln_positive(vp.min(1.0));
     let mut total = 0.0;
     for (p0, p1) in pieces {
         let sign = if p1 >= p0 { 1.0 } else { -1.0 };
         let x0 = (p0 - peak).abs();
-        let gaussian = table
-            .filter(|_| vp > 0.0)
-            .and_then(|t| t.piece(&lobe, vp, rr, (x0, (p1 - peak).abs())));
+        let gaussian = table.and_then(|t| t.piece(&lobe, vp, rr, (x0, (p1 - peak).abs())));
         if let Some((sum, y0s)) = gaussian {
             if sum > 0.0 {
-                let ln = n * m::ln_positive(vp.min(1.0)) - y0s;
+                let ln = ln_vpn - y0s;
                 total += if ln > -700.0 {
                     m::exp_nonpositive(ln) * sum
                 } else {
@@ -583,7 +584,7 @@ fn lobe_integral(
         }
         // v^n has a singular derivative at the cut-off (n not an integer): a last panel that
         // ends at it, or closer to it than its own width, is graded toward its end.
-        let cut = cut();
+        let cut = *cut.get_or_insert_with(|| 0.5 * m::acos((wi.x * wo.x / rr).clamp(-1.0, 1.0)));
         let x1 = (p1 - peak).abs().min(cut);
         let to_cut = cut - x1;
         let len = x1 - x0;
