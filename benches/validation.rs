@@ -5,8 +5,8 @@
 #[macro_use]
 mod common;
 
-use brdf_sampling::quadtree_sampler::validate::{CellGrid, Validation};
 use brdf_sampling::quadtree_sampler::{BuildConfig, QuadtreeSampler};
+use brdf_sampling::validate::{CellGrid, Validation};
 use criterion::{BenchmarkId, Criterion, Throughput};
 use rand_core::SeedableRng;
 use std::hint::black_box;

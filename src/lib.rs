@@ -33,6 +33,8 @@ pub mod rng {
 
 pub use brdf_core;
 pub use brdf_core::*;
+/// The statistical validation of samplers (the `brdf-validate` crate).
+pub use brdf_validate as validate;
 pub use quadtree_sampler;
 
 /// The README's examples, compiled and run as doc tests so that they stay true.

@@ -75,7 +75,6 @@ mod packed;
 mod sampler;
 mod table;
 mod tree;
-pub mod validate;
 mod warp;
 mod warp_table;
 

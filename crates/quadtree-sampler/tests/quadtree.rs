@@ -196,7 +196,7 @@ fn builds_terminate_at_grazing_incidence() {
 /// (albedo 0, every sample failing). Oracle: the validation's adaptive cell integration.
 #[test]
 fn a_lobe_between_the_roots_integration_points_is_found() {
-    use quadtree_sampler::validate::{CellGrid, Validation};
+    use brdf_validate::{CellGrid, Validation};
     for (name, params, theta, map) in [
         (
             "ward",

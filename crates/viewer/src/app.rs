@@ -8,10 +8,10 @@ use crate::worker::{FrMap, Request, SampleState, SamplerKind, Update, Worker};
 use brdf_core::geometry::{spherical_angles, spherical_direction};
 use brdf_core::registry::{self, ModelInfo};
 use brdf_core::{Brdf, DiskMap, ParamKind, ParamSet, ParamValue};
+use brdf_validate::{CellGrid, ChiSquare, Histogram, chi_square};
 use eframe::egui::{self, Color32, Rect, Sense, Stroke, TextureHandle, TextureOptions, vec2};
 use eframe::egui_wgpu;
 use glam::{Vec2, Vec3};
-use quadtree_sampler::validate::{CellGrid, ChiSquare, chi_square};
 use quadtree_sampler::{BuildConfig, Quadtree, TreeStats};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -130,31 +130,13 @@ struct Results {
 pub struct LiveTest {
     /// Samples that landed in cells.
     pub samples: u64,
-    /// Expected count per cell.
-    pub expected: Vec<f64>,
-    /// Observed count per cell.
-    pub observed: Vec<u64>,
+    /// Observed and expected counts per cell (expected for the samples that landed).
+    pub histogram: Histogram,
     /// Pearson's χ² (`None` with fewer than two pooled bins).
     pub chi2: Option<ChiSquare>,
 }
 
 impl LiveTest {
-    /// (n − e)/√e per cell (0 where e = 0).
-    #[must_use]
-    pub fn residuals(&self) -> Vec<f64> {
-        self.observed
-            .iter()
-            .zip(&self.expected)
-            .map(|(&o, &e)| {
-                if e > 0.0 {
-                    (o as f64 - e) / e.sqrt()
-                } else {
-                    0.0
-                }
-            })
-            .collect()
-    }
-
     /// Whether the χ² test accepts at [`ALPHA`].
     #[must_use]
     pub fn passed(&self) -> bool {
@@ -416,12 +398,11 @@ impl ViewerApp {
         if landed == 0 || total <= 0.0 {
             return None;
         }
-        let expected: Vec<f64> = mass.iter().map(|m| landed as f64 * m / total).collect();
+        let histogram = Histogram::of_counts(*grid, samples.counts.clone(), mass.to_vec());
         Some(LiveTest {
             samples: landed,
-            chi2: chi_square(&samples.counts, &expected),
-            expected,
-            observed: samples.counts.clone(),
+            chi2: chi_square(&histogram.observed, &histogram.expected),
+            histogram,
         })
     }
 
@@ -983,17 +964,13 @@ impl ViewerApp {
                     self.view_rects.insert(name, rect);
                     painter.rect_filled(rect, 0.0, views::OUTSIDE);
                     if let (Some(t), Some(grid)) = (&test, grid) {
-                        let max = t
-                            .expected
-                            .iter()
-                            .copied()
-                            .chain(t.observed.iter().map(|&o| o as f64))
-                            .fold(0.0, f64::max);
-                        let residuals = t.residuals();
+                        let h = &t.histogram;
+                        let max = h.count_scale();
+                        let residuals = h.residuals();
                         let color = |i: usize| match name {
-                            _ if t.expected[i] <= 0.0 && t.observed[i] == 0 => views::OUTSIDE,
-                            "observed" => views::count_color(t.observed[i] as f64, max),
-                            "expected" => views::count_color(t.expected[i], max),
+                            _ if h.expected[i] <= 0.0 && h.observed[i] == 0 => views::OUTSIDE,
+                            "observed" => views::count_color(h.observed[i] as f64, max),
+                            "expected" => views::count_color(h.expected[i], max),
                             _ => views::residual_color(residuals[i]),
                         };
                         views::paint_cells(&painter, rect, grid, &color);
@@ -1059,8 +1036,8 @@ impl ViewerApp {
             let tree = self.results.tree.as_ref().map(|t| &*t.0);
             files.push(export::write_maps(dir, fr, tree)?);
         }
-        if let (Some(t), Some((grid, mass))) = (self.live_test(), &self.results.expected) {
-            files.push(export::write_cells(dir, *grid, mass, &t)?);
+        if let Some(t) = self.live_test() {
+            files.push(export::write_cells(dir, &t.histogram)?);
         }
         Ok(files)
     }

@@ -1,10 +1,9 @@
 //! Exports: a PNG of each view (cropped from a full-window image) and the raw maps as EXR.
 
-use crate::app::LiveTest;
 use crate::worker::{FrMap, leaf_per_pixel};
+use brdf_validate::Histogram;
 use eframe::egui::{ColorImage, Rect};
 use quadtree_sampler::Quadtree;
-use quadtree_sampler::validate::CellGrid;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -101,26 +100,12 @@ pub fn write_maps(dir: &Path, fr: &FrMap, tree: Option<&Quadtree>) -> Result<Pat
 }
 
 /// `cells.exr`: the histogram cells (square grids with y = +1 in the top row; polar grids one
-/// row per ring, centre first) with channels `observed`, `expected`, `mass` and `residual`.
-pub fn write_cells(
-    dir: &Path,
-    grid: CellGrid,
-    mass: &[f64],
-    test: &LiveTest,
-) -> Result<PathBuf, String> {
-    let (rows, cols) = grid.dims();
-    let order = grid.image_order();
-    let residual = test.residuals();
-    let take = |v: &dyn Fn(usize) -> f64| order.iter().map(|&i| v(i) as f32).collect::<Vec<_>>();
-    write_exr(
-        &dir.join("cells.exr"),
-        cols,
-        rows,
-        vec![
-            ("observed", take(&|i| test.observed[i] as f64)),
-            ("expected", take(&|i| test.expected[i])),
-            ("mass", take(&|i| mass[i])),
-            ("residual", take(&|i| residual[i])),
-        ],
-    )
+/// row per ring, centre first) with channels `observed`, `expected`, `mass` and `residual`
+/// (`brdf_validate::Histogram::write_exr`, the writer `brdf test --out` uses too).
+pub fn write_cells(dir: &Path, histogram: &Histogram) -> Result<PathBuf, String> {
+    let path = dir.join("cells.exr");
+    histogram
+        .write_exr(&path, "viewer")
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(path)
 }

@@ -2,11 +2,11 @@
 //! leaf outlines, and the histogram cells of the validation grid.
 
 use crate::worker::{FrMap, leaf_per_pixel};
+use brdf_validate::CellGrid;
 use eframe::egui::{self, Color32, ColorImage, Mesh, Pos2, Rect, Shape, Stroke};
 use glam::Vec2;
 use quadtree_sampler::Quadtree;
 use quadtree_sampler::colormap::{rdbu, viridis};
-use quadtree_sampler::validate::CellGrid;
 
 /// Background for points outside the map's domain (the orthographic corners).
 pub const OUTSIDE: Color32 = Color32::from_rgb(24, 24, 28);

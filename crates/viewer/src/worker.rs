@@ -1,6 +1,6 @@
 //! The background worker: everything that evaluates the BRDF in bulk runs here, off the UI
 //! thread — the f_r map of the disk view, the lobe mesh, the quadtree build, the expected
-//! cell masses (the independent integrator of `quadtree_sampler::validate`) and the samples.
+//! cell masses (the independent integrator of `brdf_validate`) and the samples.
 //!
 //! The UI sends a [`Request`] whenever an input changes; each carries a generation number.
 //! The worker always works on the newest request: it drops queued stale ones, and between
@@ -10,8 +10,8 @@
 
 use brdf_core::geometry::luminance;
 use brdf_core::{Brdf, DiskMap};
+use brdf_validate::{CellGrid, Validation};
 use glam::{DVec2, Vec2, Vec3};
-use quadtree_sampler::validate::{CellGrid, Validation};
 use quadtree_sampler::{
     AnySampler, BakeConfig, BakedSampler, BuildConfig, DEFAULT_BAKE_NODE_BUDGET, DirectionSampler,
     Quadtree, QuadtreeSampler, SamplerMode, TreeStats,

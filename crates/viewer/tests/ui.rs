@@ -194,8 +194,8 @@ fn snapshot_of_the_window() {
 
 #[test]
 fn a_newer_request_abandons_the_stale_job() {
+    use brdf_validate::CellGrid;
     use quadtree_sampler::BuildConfig;
-    use quadtree_sampler::validate::CellGrid;
     use std::sync::Arc;
     use viewer::worker::{Request, SamplerKind, Update, Worker};
     let phong: Arc<dyn brdf_core::Brdf> =

@@ -1,9 +1,10 @@
 //! Pictures of one validation test for `brdf test --out`: a PNG of expected | observed |
-//! difference over the disk, and an EXR of the raw per-cell arrays.
+//! difference over the disk (the EXR of the raw per-cell arrays is
+//! `brdf_validate::Histogram::write_exr`).
 
 use brdf_sampling::glam::Vec3;
 use brdf_sampling::quadtree_sampler::colormap;
-use brdf_sampling::quadtree_sampler::validate::{CellGrid, Report};
+use brdf_sampling::validate::{CellGrid, Histogram};
 use std::path::Path;
 
 /// Side of one panel in pixels.
@@ -24,26 +25,6 @@ type ColourMap = fn(f32) -> [u8; 3];
 
 /// One panel: per-cell values, the colour map, and the value range it spans.
 type Panel<'a> = (&'a [f64], ColourMap, f64, f64);
-
-/// The standardised residual of every cell, (n − e)/√e; a cell that expects nothing reads
-/// 0 when it got nothing and +∞ otherwise.
-pub(crate) fn residuals(report: &Report) -> Vec<f64> {
-    report
-        .observed
-        .iter()
-        .zip(&report.expected)
-        .map(|(&o, &e)| {
-            let o = o as f64;
-            if e > 0.0 {
-                (o - e) / e.sqrt()
-            } else if o > 0.0 {
-                f64::INFINITY
-            } else {
-                0.0
-            }
-        })
-        .collect()
-}
 
 /// The cell under every pixel of a panel (`None` off the disk); row 0 is the top (y = +1).
 fn cell_map(grid: CellGrid) -> Vec<Option<usize>> {
@@ -66,25 +47,19 @@ fn cell_map(grid: CellGrid) -> Vec<Option<usize>> {
 /// Writes the three panels side by side: expected counts, observed counts (one linear
 /// viridis scale from 0 to the largest count of either), and (n − e)/√e on RdBu over
 /// ±[`RESIDUAL_RANGE`]; a colour bar under each.
-pub(crate) fn write_png(path: &Path, grid: CellGrid, report: &Report) -> image::ImageResult<()> {
+pub(crate) fn write_png(path: &Path, histogram: &Histogram) -> image::ImageResult<()> {
     let width = 3 * PANEL + 4 * MARGIN;
     let height = PANEL + BAR + 3 * MARGIN;
     let mut img = image::RgbImage::from_pixel(width, height, image::Rgb(BACKGROUND));
-    let vmax = report
-        .observed
-        .iter()
-        .map(|&o| o as f64)
-        .chain(report.expected.iter().copied())
-        .fold(0.0f64, f64::max)
-        .max(1.0);
-    let residual = residuals(report);
-    let observed: Vec<f64> = report.observed.iter().map(|&o| o as f64).collect();
+    let vmax = histogram.count_scale();
+    let residual = histogram.residuals();
+    let observed: Vec<f64> = histogram.observed.iter().map(|&o| o as f64).collect();
     let panels: [Panel<'_>; 3] = [
-        (&report.expected, colormap::viridis, 0.0, vmax),
+        (&histogram.expected, colormap::viridis, 0.0, vmax),
         (&observed, colormap::viridis, 0.0, vmax),
         (&residual, colormap::rdbu, -RESIDUAL_RANGE, RESIDUAL_RANGE),
     ];
-    let cells = cell_map(grid);
+    let cells = cell_map(histogram.grid);
     for (k, (values, map, lo, hi)) in panels.into_iter().enumerate() {
         let x0 = MARGIN + k as u32 * (PANEL + MARGIN);
         let t = |v: f64| (v - lo) / (hi - lo);
@@ -109,47 +84,4 @@ pub(crate) fn write_png(path: &Path, grid: CellGrid, report: &Report) -> image::
     // Complete or absent: encoded in memory, then renamed into place.
     brdf_sampling::quadtree_sampler::write_atomically(path, bytes.get_ref())
         .map_err(image::ImageError::IoError)
-}
-
-/// Writes the raw per-cell arrays as one EXR layer of `cols × rows` f32 pixels with the
-/// channels `expected`, `expected_own`, `mass`, `observed` and `residual`. Square grids put
-/// y = +1 in the top row (as the PNG); polar grids have one row per ring, the centre first,
-/// and one column per sector from φ = 0.
-pub(crate) fn write_exr(
-    path: &Path,
-    grid: CellGrid,
-    report: &Report,
-    mass: &[f64],
-) -> exr::error::UnitResult {
-    use exr::prelude::*;
-    let (rows, cols) = grid.dims();
-    let order = grid.image_order();
-    let channel = |name: &str, values: &dyn Fn(usize) -> f64| {
-        AnyChannel::new(
-            name,
-            FlatSamples::F32(order.iter().map(|&i| values(i) as f32).collect()),
-        )
-    };
-    let residual = residuals(report);
-    let channels = AnyChannels::sort(
-        vec![
-            channel("expected", &|i| report.expected[i]),
-            channel("expected_own", &|i| report.expected_own[i]),
-            channel("mass", &|i| mass[i]),
-            channel("observed", &|i| report.observed[i] as f64),
-            channel("residual", &|i| residual[i]),
-        ]
-        .into(),
-    );
-    let layer = Layer::new(
-        (cols, rows),
-        LayerAttributes::named("brdf test"),
-        Encoding::FAST_LOSSLESS,
-        channels,
-    );
-    let mut bytes = std::io::Cursor::new(Vec::new());
-    Image::from_layer(layer).write().to_buffered(&mut bytes)?;
-    // Complete or absent: encoded in memory, then renamed into place.
-    brdf_sampling::quadtree_sampler::write_atomically(path, bytes.get_ref())
-        .map_err(exr::error::Error::Io)
 }

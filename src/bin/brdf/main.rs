@@ -152,6 +152,7 @@ impl ModelArgs {
 enum CliError {
     Param(brdf_sampling::ParamError),
     Build(brdf_sampling::quadtree_sampler::BuildError),
+    Validate(brdf_sampling::validate::ValidateError),
     Usage(String),
     Io(std::io::Error),
     Input { line: u64, message: String },
@@ -162,6 +163,7 @@ impl std::fmt::Display for CliError {
         match self {
             Self::Param(e) => write!(f, "{e}"),
             Self::Build(e) => write!(f, "{e}"),
+            Self::Validate(e) => write!(f, "{e}"),
             Self::Usage(e) => write!(f, "{e}"),
             Self::Io(e) => write!(f, "i/o error: {e}"),
             Self::Input { line, message } => write!(f, "stdin line {line}: {message}"),
@@ -178,6 +180,12 @@ impl From<brdf_sampling::ParamError> for CliError {
 impl From<brdf_sampling::quadtree_sampler::BuildError> for CliError {
     fn from(e: brdf_sampling::quadtree_sampler::BuildError) -> Self {
         Self::Build(e)
+    }
+}
+
+impl From<brdf_sampling::validate::ValidateError> for CliError {
+    fn from(e: brdf_sampling::validate::ValidateError) -> Self {
+        Self::Validate(e)
     }
 }
 
@@ -228,7 +236,7 @@ fn run(cli: Cli) -> Result<Outcome, CliError> {
         }
         Command::Test { model, mut test } => {
             let brdf = model.resolve(test.options_mut())?;
-            use brdf_sampling::quadtree_sampler::validate::Verdict;
+            use brdf_sampling::validate::Verdict;
             return Ok(match test::run(&*brdf, &model.params, &test, stdout)? {
                 Verdict::Passed => Outcome::Passed,
                 Verdict::Rejected => Outcome::Rejected,

@@ -7,16 +7,13 @@ use crate::sample::{self, SamplerOptions};
 use brdf_sampling::Brdf;
 use brdf_sampling::geometry::spherical_direction;
 use brdf_sampling::glam::Vec3;
-use brdf_sampling::quadtree_sampler::DirectionSampler;
-use brdf_sampling::quadtree_sampler::validate::{
-    CellGrid, ChiSquare, Report, Validation, Verdict, sidak,
+use brdf_sampling::validate::{
+    self as validate, CellGrid, ChiSquare, Event, Settings, TestOutcome, Verdict,
 };
-use rand_core::SeedableRng;
 use serde_json::{Value, json};
 use std::fmt::Write as _;
 use std::io::Write;
 use std::path::PathBuf;
-use std::time::Instant;
 
 /// Which cells (`--grid`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -85,73 +82,35 @@ impl TestArgs {
     }
 }
 
-/// The relative floor of the mean-weight test (see its use).
-const WEIGHT_FLOOR: f64 = 1e-4;
-
-/// The baked sampler's mean weight against the quadrature albedo at one wi (SPEC §7).
-struct WeightTest {
-    wi: Vec3,
-    mean: f64,
-    se: f64,
-    albedo: f64,
-    p: f64,
-    passed: bool,
+impl From<Against> for validate::Against {
+    fn from(a: Against) -> Self {
+        match a {
+            Against::Fcos => Self::FCos,
+            Against::Own => Self::OwnPdf,
+        }
+    }
 }
 
-/// One finished test.
+/// One finished test with the pictures written of it.
 struct Row {
-    against: Against,
-    wi: Vec3,
-    grid: CellGrid,
-    report: Report,
-    seconds: f64,
+    test: TestOutcome,
     images: Vec<PathBuf>,
 }
 
-/// SplitMix64's finaliser: decorrelates the seeds of tests and chunks.
-fn splitmix64(x: u64) -> u64 {
-    let mut z = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
-}
-
 impl Row {
-    /// The reasons for the verdict `--against` asks for: what rejected, then what could not
-    /// be judged.
-    fn reasons(&self) -> Vec<&String> {
-        let (rejects, unjudged) = match self.against {
-            Against::Fcos => (&self.report.reasons, &self.report.inconclusive),
-            Against::Own => (&self.report.own_reasons, &self.report.own_inconclusive),
-        };
-        rejects.iter().chain(unjudged).collect()
+    /// The incident direction (every test of a suite has one).
+    fn wi(&self) -> Vec3 {
+        self.test.wi.unwrap_or(Vec3::Z)
     }
 
-    /// The verdict `--against` asks for.
-    fn verdict(&self) -> Verdict {
-        match self.against {
-            Against::Fcos => self.report.verdict(),
-            Against::Own => self.report.verdict_own(),
-        }
+    /// What rejected, then what could not be judged, as text.
+    fn reasons(&self) -> Vec<String> {
+        self.test
+            .reasons()
+            .iter()
+            .map(ToString::to_string)
+            .collect()
     }
-
-    fn passed(&self) -> bool {
-        self.verdict() == Verdict::Passed
-    }
-}
-
-/// The run's outcome: rejected when any test rejected, else inconclusive when any could not
-/// be judged, else passed (exit status 1, 3, 0).
-pub(crate) fn overall(verdicts: impl IntoIterator<Item = Verdict>) -> Verdict {
-    let mut out = Verdict::Passed;
-    for v in verdicts {
-        match v {
-            Verdict::Rejected => return Verdict::Rejected,
-            Verdict::Inconclusive => out = Verdict::Inconclusive,
-            Verdict::Passed => {}
-        }
-    }
-    out
 }
 
 fn verdict_text(v: Verdict) -> &'static str {
@@ -206,7 +165,7 @@ fn grid_slug(g: CellGrid) -> &'static str {
     }
 }
 
-/// Runs the tests; returns the run's verdict ([`overall`]).
+/// Runs the tests (the suite of `brdf_validate`); returns the run's verdict.
 pub(crate) fn run(
     brdf: &dyn Brdf,
     params: &[String],
@@ -266,104 +225,87 @@ pub(crate) fn run(
     // A baked sampler is judged on its own pdf (it follows f·cos only on its grid), plus one
     // test per wi that its mean weight is the albedo.
     let against = if baked { Against::Own } else { args.against };
-    let tests = wis.len() * grids.len() + if baked { wis.len() } else { 0 };
-    let alpha = sidak(args.alpha, tests);
-    let mut weight_tests = Vec::new();
+    let settings = Settings {
+        grids,
+        samples: args.samples,
+        seed: args.seed,
+        alpha: args.alpha,
+        tol: args.tol,
+        against: against.into(),
+        mean_weight: baked,
+    };
+    let tests = settings.tests(wis.len());
     let mode = format!("{:?}", args.options.mode).to_lowercase();
-    let mut rows = Vec::with_capacity(tests);
     let mut builds = Vec::with_capacity(wis.len());
+    let mut images = Vec::with_capacity(tests);
     let bar = crate::progress::Progress::new("testing", tests as u64);
-    for (k, &wi) in wis.iter().enumerate() {
-        bar.note(&format!("wi {}/{}", k + 1, wis.len()));
-        let built = sample::build(brdf, wi, &args.options)?;
-        let stats = built.sampler.tree_stats();
-        builds.push(json!({
-            "wi": [wi.x, wi.y, wi.z],
-            "build_seconds": built.build_seconds,
-            "nodes": stats.as_ref().map(|t| t.nodes),
-            "leaves": stats.as_ref().map(|t| t.leaves),
-            "max_depth": stats.as_ref().map(|t| t.max_depth),
-            "expected_trials": stats.as_ref().filter(|_| built.sampler.bound_violations().is_some()).map(|t| t.expected_trials),
-        }));
-        for (g, &grid) in grids.iter().enumerate() {
-            let t0 = Instant::now();
-            let v = Validation::new(brdf, wi, grid, args.tol)?;
-            let index = (k * grids.len() + g) as u64;
-            let test_seed = splitmix64(args.seed ^ splitmix64(index));
-            let report = v.test_chunked(
-                &built.sampler,
-                args.samples,
-                |chunk| rand_pcg::Pcg64::seed_from_u64(splitmix64(test_seed ^ splitmix64(chunk))),
-                alpha,
-            );
-            let seconds = t0.elapsed().as_secs_f64();
-            let mut images = Vec::new();
-            if let Some(dir) = &args.out {
-                let stem = format!("{}-{mode}-wi{k}-{}", brdf.name(), grid_slug(grid));
-                let png = dir.join(format!("{stem}.png"));
-                images::write_png(&png, grid, &report)
-                    .map_err(|e| CliError::Usage(format!("writing {}: {e}", png.display())))?;
-                let exr = dir.join(format!("{stem}.exr"));
-                images::write_exr(&exr, grid, &report, v.mass())
-                    .map_err(|e| CliError::Usage(format!("writing {}: {e}", exr.display())))?;
-                images.push(png);
-                images.push(exr);
-            }
-            rows.push(Row {
-                against,
-                wi,
-                grid,
-                report,
-                seconds,
-                images,
-            });
-            bar.step();
-        }
-    }
-    if baked {
-        for (k, &wi) in wis.iter().enumerate() {
-            bar.note(&format!("mean weight at wi {}/{}", k + 1, wis.len()));
+    let per_wi = settings.grids.len();
+    let report = validate::suite(
+        brdf,
+        &wis,
+        &settings,
+        |k, wi| {
+            bar.note(&format!("wi {}/{}", k + 1, wis.len()));
             let built = sample::build(brdf, wi, &args.options)?;
-            let seed = splitmix64(args.seed ^ splitmix64(0xba4e_0000 + k as u64));
-            let (mean, se) = mean_weight(&built.sampler, args.samples, seed);
-            let albedo = f64::from(brdf_sampling::geometry::luminance(
-                brdf_sampling::quadrature::directional_albedo(brdf, wi, 96, 6).as_vec3(),
-            ));
-            // The trees' leaf integrals and the quadrature are exact to about 10⁻⁶; a sampler
-            // this close to ∝ f·cos has a standard error far below that, so the difference is
-            // judged against the counting error and a 10⁻⁴ relative floor together.
-            let scale = (se * se + (WEIGHT_FLOOR * albedo).powi(2)).sqrt();
-            let z = if scale > 0.0 {
-                (mean - albedo).abs() / scale
-            } else if mean == albedo {
-                0.0
-            } else {
-                f64::INFINITY
-            };
-            let p = brdf_sampling::special::erfc(z / std::f64::consts::SQRT_2);
-            bar.step();
-            weight_tests.push(WeightTest {
-                wi,
-                mean,
-                se,
-                albedo,
-                p,
-                passed: p >= alpha,
-            });
-        }
-    }
-    drop(bar);
-    let verdict = overall(
-        rows.iter()
-            .map(Row::verdict)
-            .chain(weight_tests.iter().map(|w| {
-                if w.passed {
-                    Verdict::Passed
-                } else {
-                    Verdict::Rejected
+            let stats = built.sampler.tree_stats();
+            builds.push(json!({
+                "wi": [wi.x, wi.y, wi.z],
+                "build_seconds": built.build_seconds,
+                "nodes": stats.as_ref().map(|t| t.nodes),
+                "leaves": stats.as_ref().map(|t| t.leaves),
+                "max_depth": stats.as_ref().map(|t| t.max_depth),
+                "expected_trials": stats.as_ref().filter(|_| built.sampler.bound_violations().is_some()).map(|t| t.expected_trials),
+            }));
+            Ok::<_, CliError>(built.sampler)
+        },
+        |event| {
+            match event {
+                Event::Tested {
+                    outcome,
+                    validation,
+                } => {
+                    let mut written = Vec::new();
+                    if let Some(dir) = &args.out {
+                        let k = images.len() / per_wi;
+                        let stem =
+                            format!("{}-{mode}-wi{k}-{}", brdf.name(), grid_slug(outcome.grid));
+                        let png = dir.join(format!("{stem}.png"));
+                        images::write_png(&png, &outcome.report.histogram).map_err(|e| {
+                            CliError::Usage(format!("writing {}: {e}", png.display()))
+                        })?;
+                        let exr = dir.join(format!("{stem}.exr"));
+                        debug_assert_eq!(validation.mass(), outcome.report.histogram.mass);
+                        outcome
+                            .report
+                            .histogram
+                            .write_exr(&exr, "brdf test")
+                            .map_err(|e| {
+                                CliError::Usage(format!("writing {}: {e}", exr.display()))
+                            })?;
+                        written.push(png);
+                        written.push(exr);
+                    }
+                    images.push(written);
+                    bar.step();
                 }
-            })),
-    );
+                Event::WeighingStarts { index, of } => {
+                    bar.note(&format!("mean weight at wi {}/{of}", index + 1));
+                }
+                Event::Weighed(_) => bar.step(),
+            }
+            Ok(())
+        },
+    )?;
+    drop(bar);
+    let verdict = report.verdict();
+    let alpha = report.alpha_per_test;
+    let weight_tests = &report.weight_tests;
+    let rows: Vec<Row> = report
+        .tests
+        .into_iter()
+        .zip(images)
+        .map(|(test, images)| Row { test, images })
+        .collect();
     let passed = verdict == Verdict::Passed;
     let header = format!(
         "model {}{}{}, sampler {mode}{}, {} samples per test, judged against {}, α = {} over {tests} tests (Šidák: {:.3e} each)",
@@ -387,16 +329,16 @@ pub(crate) fn run(
     let mut table = table(&header, &rows);
     if baked {
         table.push_str("\n| wi | mean weight | SE | albedo (quadrature) | p | verdict |\n|---|---:|---:|---:|---:|---|\n");
-        for w in &weight_tests {
+        for w in weight_tests {
             table.push_str(&format!(
                 "| {:.4},{:.4},{:.4} | {:.6} | {:.2e} | {:.6} | {:.3e} | {} |\n",
-                w.wi.x,
-                w.wi.y,
-                w.wi.z,
+                w.wi.unwrap_or(Vec3::Z).x,
+                w.wi.unwrap_or(Vec3::Z).y,
+                w.wi.unwrap_or(Vec3::Z).z,
                 w.mean,
-                w.se,
+                w.standard_error,
                 w.albedo,
-                w.p,
+                w.p_value,
                 if w.passed {
                     "pass"
                 } else {
@@ -422,11 +364,11 @@ pub(crate) fn run(
             "against": format!("{:?}", against).to_lowercase(),
             "baked": baked,
             "weight_tests": weight_tests.iter().map(|w| json!({
-                "wi": [w.wi.x, w.wi.y, w.wi.z],
+                "wi": w.wi.map(|wi| [wi.x, wi.y, wi.z]),
                 "mean_weight": w.mean,
-                "standard_error": w.se,
+                "standard_error": w.standard_error,
                 "albedo": w.albedo,
-                "p_value": w.p,
+                "p_value": w.p_value,
                 "passed": w.passed,
             })).collect::<Vec<_>>(),
             "samples": args.samples,
@@ -469,8 +411,8 @@ fn table(header: &str, rows: &[Row]) -> String {
         "|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---|---:|---|"
     );
     for r in rows {
-        let (theta, phi) = angles(r.wi);
-        let rep = &r.report;
+        let (theta, phi) = angles(r.wi());
+        let rep = &r.test.report;
         let (chi, dof) = rep.chi2.as_ref().map_or_else(
             || ("–".into(), "–".into()),
             |c| (format!("{:.1}", c.statistic), c.dof.to_string()),
@@ -488,14 +430,14 @@ fn table(header: &str, rows: &[Row]) -> String {
         let _ = writeln!(
             s,
             "| {:.4},{:.4},{:.4} | {theta:.1} | {phi:.1} | {} | {chi} | {dof} | {} | {} | {rms} | {noise} | {range} | {:.2} | {} |",
-            r.wi.x,
-            r.wi.y,
-            r.wi.z,
-            grid_name(r.grid),
+            r.wi().x,
+            r.wi().y,
+            r.wi().z,
+            grid_name(r.test.grid),
             p_text(rep.chi2.as_ref()),
             p_text(rep.chi2_own.as_ref()),
-            r.seconds,
-            verdict_text(r.verdict())
+            r.test.seconds,
+            verdict_text(r.test.verdict())
         );
     }
     for (k, r) in rows.iter().enumerate() {
@@ -514,14 +456,15 @@ fn chi_json(c: Option<&ChiSquare>) -> Value {
 }
 
 fn row_json(r: &Row) -> Value {
-    let rep = &r.report;
-    let (theta, phi) = angles(r.wi);
-    let (rows, cols) = r.grid.dims();
+    let rep = &r.test.report;
+    let wi = r.wi();
+    let (theta, phi) = angles(wi);
+    let (rows, cols) = r.test.grid.dims();
     json!({
-        "wi": [r.wi.x, r.wi.y, r.wi.z],
+        "wi": [wi.x, wi.y, wi.z],
         "theta_deg": theta,
         "phi_deg": phi,
-        "grid": {"kind": grid_slug(r.grid), "rows": rows, "cols": cols},
+        "grid": {"kind": grid_slug(r.test.grid), "rows": rows, "cols": cols},
         "chi2": chi_json(rep.chi2.as_ref()),
         "chi2_own": chi_json(rep.chi2_own.as_ref()),
         "spread": rep.spread.as_ref().map_or(Value::Null, |s| json!({
@@ -531,37 +474,10 @@ fn row_json(r: &Row) -> Value {
         "outside": rep.outside,
         "inconsistent": rep.inconsistent,
         "in_empty_cells": rep.in_empty_cells,
-        "seconds": r.seconds,
-        "passed": r.passed(),
-        "verdict": verdict_slug(r.verdict()),
+        "seconds": r.test.seconds,
+        "passed": r.test.verdict() == Verdict::Passed,
+        "verdict": verdict_slug(r.test.verdict()),
         "reasons": r.reasons(),
         "images": r.images.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
     })
-}
-
-/// The mean luminance weight and its standard error over `samples` draws (lost samples
-/// score 0), in chunks of 65536 with their own generators, summed in order.
-fn mean_weight(sampler: &dyn DirectionSampler, samples: u64, seed: u64) -> (f64, f64) {
-    use rayon::prelude::*;
-    let chunk = 1u64 << 16;
-    let parts: Vec<(f64, f64)> = (0..samples.div_ceil(chunk))
-        .into_par_iter()
-        .map(|k| {
-            let mut rng = rand_pcg::Pcg64::seed_from_u64(splitmix64(seed ^ splitmix64(k)));
-            let n = chunk.min(samples - k * chunk);
-            let (mut s, mut q) = (0.0, 0.0);
-            for _ in 0..n {
-                let w = sampler.sample(&mut rng).map_or(0.0, |s| {
-                    f64::from(brdf_sampling::geometry::luminance(s.weight))
-                });
-                s += w;
-                q += w * w;
-            }
-            (s, q)
-        })
-        .collect();
-    let (s, q) = parts.iter().fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
-    let n = samples as f64;
-    let m = s / n;
-    (m, ((q / n - m * m).max(0.0) / n).sqrt())
 }

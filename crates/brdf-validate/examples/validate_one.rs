@@ -5,8 +5,8 @@
 //! in degrees to move it).
 
 use brdf_core::registry;
+use brdf_validate::{CellGrid, Validation, sidak};
 use glam::Vec3;
-use quadtree_sampler::validate::{CellGrid, Validation, sidak};
 use quadtree_sampler::{BuildConfig, QuadtreeSampler};
 use rand_core::SeedableRng;
 use rand_pcg::Pcg64;

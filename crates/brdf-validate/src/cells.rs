@@ -1,0 +1,257 @@
+//! The cells a test histograms samples into (the seed's Celda), and each cell's integral by
+//! the independent integrator of [`crate::integrate`](self).
+
+use crate::error::ValidateError;
+use crate::integrate::{MAX_BREAKS, MAX_PIECES, adaptive};
+use brdf_core::math as m;
+use glam::{DVec3, Vec3};
+use std::f64::consts::PI;
+
+/// Cells over the projected disk (SPEC §5).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum CellGrid {
+    /// The seed's grid: `res` × `res` equal squares over [−1,1]² of (wo.x, wo.y) (the
+    /// orthographic map); cells on the rim are cut by it, the corners lie wholly outside.
+    Square {
+        /// Cells per side.
+        res: usize,
+    },
+    /// An equal-area polar grid on the disk: `rings` in r² and `sectors` in φ, so no cell
+    /// straddles the rim. Odd counts keep cell edges off the symmetry planes of most lobes.
+    Polar {
+        /// Rings, r² ∈ [i/rings, (i+1)/rings).
+        rings: usize,
+        /// Sectors, φ ∈ [2πj/sectors, 2π(j+1)/sectors).
+        sectors: usize,
+    },
+}
+
+impl CellGrid {
+    /// Number of cells.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        let (r, c) = self.dims();
+        r * c
+    }
+
+    /// Whether the grid has no cells (never, once [`CellGrid::check`] passed).
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// (rows, columns): (res, res) with row = y, or (rings, sectors).
+    #[must_use]
+    pub fn dims(&self) -> (usize, usize) {
+        match *self {
+            Self::Square { res } => (res, res),
+            Self::Polar { rings, sectors } => (rings, sectors),
+        }
+    }
+
+    /// The cell indices in image order (rows top to bottom, columns left to right): square
+    /// grids put y = +1 in the top row, as a picture of the disk; polar grids have one row per
+    /// ring, the centre first, and one column per sector from φ = 0. Shared by every writer
+    /// of per-cell images (the `brdf test` EXR, the viewer's export).
+    #[must_use]
+    pub fn image_order(&self) -> Vec<usize> {
+        let (rows, cols) = self.dims();
+        match *self {
+            Self::Square { .. } => (0..rows)
+                .rev()
+                .flat_map(|r| (0..cols).map(move |c| r * cols + c))
+                .collect(),
+            Self::Polar { .. } => (0..rows * cols).collect(),
+        }
+    }
+
+    /// The largest number of rows or columns a grid may have.
+    pub const MAX_DIMENSION: usize = 4096;
+
+    /// Every dimension in 1..=[`CellGrid::MAX_DIMENSION`].
+    pub fn check(&self) -> Result<(), ValidateError> {
+        let (r, c) = self.dims();
+        for value in [r, c] {
+            if !(1..=Self::MAX_DIMENSION).contains(&value) {
+                return Err(ValidateError::GridDimension { value });
+            }
+        }
+        Ok(())
+    }
+
+    /// The cell holding direction `wo` (row-major), or `None` when `wo` is not a finite
+    /// direction strictly above the horizon.
+    #[must_use]
+    pub fn cell_of(&self, wo: Vec3) -> Option<usize> {
+        if !(wo.is_finite() && wo.z > 0.0) {
+            return None;
+        }
+        let w = wo.as_dvec3().normalize();
+        let bin = |t: f64, n: usize| ((t * n as f64) as usize).min(n - 1);
+        Some(match *self {
+            Self::Square { res } => bin(0.5 * (w.y + 1.0), res) * res + bin(0.5 * (w.x + 1.0), res),
+            Self::Polar { rings, sectors } => {
+                let r2 = (w.x * w.x + w.y * w.y).min(1.0);
+                let mut phi = m::atan2(w.y, w.x);
+                if phi < 0.0 {
+                    phi += 2.0 * PI;
+                }
+                bin(r2, rings) * sectors + bin(phi / (2.0 * PI), sectors)
+            }
+        })
+    }
+
+    /// ∫ g(w) dA over cell `i` of the disk (dA = projected solid angle, dω = dA / cos θ), by
+    /// nested adaptive Gauss–Kronrod (7–15) to about `tol` absolute, in coordinates where the
+    /// rim is a boundary and integrands that grow like 1/√cos θ there (Ward) stay bounded:
+    /// polar cells in (v = √z, φ), dA = 2v³ dv dφ; square cells in the angle chart x = sin s,
+    /// y = cos s · sin t (z = cos s · cos t), dA = cos²s · cos t ds dt. Each range is first
+    /// cut at the coordinates of the `hints` (directions where g may peak; see `integrate::adaptive`).
+    pub(crate) fn integrate(
+        &self,
+        i: usize,
+        tol: f64,
+        hints: &[DVec3],
+        g: &(impl Fn(Vec3) -> f64 + ?Sized),
+    ) -> f64 {
+        // One coordinate of every hint (at most MAX_BREAKS, as `adaptive` uses).
+        let coords = |c: &dyn Fn(DVec3) -> f64| {
+            let mut out = [f64::NAN; MAX_BREAKS];
+            for (o, &h) in out.iter_mut().zip(hints) {
+                *o = c(h);
+            }
+            out
+        };
+        match *self {
+            Self::Polar { rings, sectors } => {
+                let (ri, sj) = (i / sectors, i % sectors);
+                // r² ∈ [a, b] ⇔ z ∈ [√(1 − b), √(1 − a)]; dA = r dr dφ = z dz dφ.
+                let z0 = m::sqrt((1.0 - (ri + 1) as f64 / rings as f64).max(0.0));
+                let z1 = m::sqrt(1.0 - ri as f64 / rings as f64);
+                let (v0, v1) = (m::sqrt(z0), m::sqrt(z1));
+                let p0 = 2.0 * PI * sj as f64 / sectors as f64;
+                let p1 = 2.0 * PI * (sj + 1) as f64 / sectors as f64;
+                let inner_tol = 0.1 * tol / (v1 - v0).max(1e-300);
+                let v_breaks = coords(&|h| m::sqrt(h.z));
+                let phi_breaks = coords(&|h| {
+                    let phi = m::atan2(h.y, h.x);
+                    if phi < 0.0 { phi + 2.0 * PI } else { phi }
+                });
+                adaptive(
+                    &|v: f64| {
+                        let z = v * v;
+                        let r = m::sqrt((1.0 - z * z).max(0.0));
+                        2.0 * v
+                            * z
+                            * adaptive(
+                                &|phi: f64| {
+                                    g(glam::DVec3::new(r * m::cos(phi), r * m::sin(phi), z)
+                                        .as_vec3())
+                                },
+                                p0,
+                                p1,
+                                &phi_breaks,
+                                inner_tol,
+                                MAX_PIECES,
+                            )
+                    },
+                    v0,
+                    v1,
+                    &v_breaks,
+                    tol,
+                    MAX_PIECES,
+                )
+            }
+            Self::Square { res } => {
+                let (iy, ix) = (i / res, i % res);
+                let h = 2.0 / res as f64;
+                let (x0, x1) = (-1.0 + h * ix as f64, -1.0 + h * (ix + 1) as f64);
+                let (y0, y1) = (-1.0 + h * iy as f64, -1.0 + h * (iy + 1) as f64);
+                let (s0, s1) = (m::asin(x0.max(-1.0)), m::asin(x1.min(1.0)));
+                let inner_tol = 0.1 * tol / (s1 - s0).max(1e-300);
+                let s_breaks = coords(&|h| m::asin(h.x.clamp(-1.0, 1.0)));
+                adaptive(
+                    &|s: f64| {
+                        let c = m::cos(s);
+                        let (a, b) = (y0.max(-c), y1.min(c));
+                        if b <= a || c <= 0.0 {
+                            return 0.0;
+                        }
+                        let (t0, t1) = (
+                            m::asin((a / c).clamp(-1.0, 1.0)),
+                            m::asin((b / c).clamp(-1.0, 1.0)),
+                        );
+                        let x = m::sin(s);
+                        // Where each hint's y falls on this line of constant x.
+                        let t_breaks = coords(&|h| m::asin((h.y / c).clamp(-1.0, 1.0)));
+                        c * c
+                            * adaptive(
+                                &|t: f64| {
+                                    let ct = m::cos(t);
+                                    let w = glam::DVec3::new(x, c * m::sin(t), c * ct);
+                                    if w.z <= 0.0 { 0.0 } else { ct * g(w.as_vec3()) }
+                                },
+                                t0,
+                                t1,
+                                &t_breaks,
+                                inner_tol,
+                                MAX_PIECES,
+                            )
+                    },
+                    s0,
+                    s1,
+                    &s_breaks,
+                    tol,
+                    MAX_PIECES,
+                )
+            }
+        }
+    }
+
+    /// ∫ g dA over every cell, in parallel with the `rayon` feature (each cell independent,
+    /// collected in order: the result does not depend on the thread count).
+    pub(crate) fn integrate_all(
+        &self,
+        tol: f64,
+        hints: &[DVec3],
+        g: &(impl Fn(Vec3) -> f64 + Sync + ?Sized),
+    ) -> Vec<f64> {
+        use rayon::prelude::*;
+        (0..self.len())
+            .into_par_iter()
+            .map(|i| self.integrate(i, tol, hints, g))
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cells_cover_the_disk_and_sum_to_its_area() {
+        for grid in [
+            CellGrid::Square { res: 7 },
+            CellGrid::Polar {
+                rings: 5,
+                sectors: 9,
+            },
+        ] {
+            let area: f64 = grid.integrate_all(1e-10, &[], &|_| 1.0).iter().sum();
+            assert!((area - PI).abs() < 1e-8, "{grid:?}: {area}");
+            assert_eq!(grid.cell_of(Vec3::new(0.0, 0.0, -1.0)), None);
+            assert_eq!(grid.cell_of(Vec3::new(f32::NAN, 0.0, 1.0)), None);
+            assert!(grid.cell_of(Vec3::new(0.999, 0.0, 0.0447)).unwrap() < grid.len());
+        }
+        // Equal-area polar cells.
+        let g = CellGrid::Polar {
+            rings: 3,
+            sectors: 5,
+        };
+        let cells = g.integrate_all(1e-12, &[], &|_| 1.0);
+        for c in &cells {
+            assert!((c - PI / 15.0).abs() < 1e-10);
+        }
+        assert!(CellGrid::Square { res: 0 }.check().is_err());
+    }
+}

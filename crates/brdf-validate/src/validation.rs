@@ -1,0 +1,358 @@
+//! A validation set-up (the cells and their expected masses, integrated once, independently
+//! of any sampler) and one test of a sampler against it: the seed's §4 statistic and a
+//! Pearson χ² harness (SPEC §5).
+//!
+//! The expected mass of every cell comes from an adaptive Gauss–Kronrod integration of f_r
+//! over the cell on the disk, which never looks at a tree (otherwise a wrong leaf integral or
+//! bound could not be seen). Samples are histogrammed over the same cells; then
+//!
+//! - the seed's statistic: a_i = (n_i/m)/I_i must be one constant a = 1/Σ I_j; the spread of
+//!   a_i/a is reported over cells with enough expected hits;
+//! - a Pearson χ² against f·cos (cells expected below 5 pooled, dof = bins − 1, p from the
+//!   regularised upper incomplete gamma function), and a second one against the sampler's
+//!   *own* reported pdf (a "lost" bin holds the samples it gives no direction for);
+//! - per-sample consistency: the pdf a sample carries equals `pdf(wo)`, and its weight equals
+//!   f·cos θ/pdf.
+
+use crate::cells::CellGrid;
+use crate::error::ValidateError;
+use crate::histogram::Histogram;
+use crate::report::{Against, Reason, Report};
+use crate::sampler::Sampler;
+use crate::stats::{chi_square, spread};
+use brdf_core::Brdf;
+use brdf_core::geometry::unit_direction_above;
+use glam::{DVec3, Vec3};
+use rand_core::Rng;
+
+/// Samples per chunk of [`Validation::test_chunked`].
+pub const CHUNK: u64 = 1 << 16;
+
+/// Histogram and tallies of one run of samples.
+struct Counts {
+    observed: Vec<u64>,
+    lost: u64,
+    outside: u64,
+    inconsistent: u64,
+}
+
+impl Counts {
+    fn new(cells: usize) -> Self {
+        Self {
+            observed: vec![0; cells],
+            lost: 0,
+            outside: 0,
+            inconsistent: 0,
+        }
+    }
+
+    fn add(&mut self, other: &Self) {
+        for (a, b) in self.observed.iter_mut().zip(&other.observed) {
+            *a += b;
+        }
+        self.lost += other.lost;
+        self.outside += other.outside;
+        self.inconsistent += other.inconsistent;
+    }
+}
+
+/// A validation set-up for one target density: the cells and their expected mass under
+/// f_r·cos, integrated once, independently of any sampler.
+#[derive(Clone, Debug)]
+pub struct Validation {
+    grid: CellGrid,
+    /// The absolute tolerance the masses were integrated to.
+    tol: f64,
+    /// Where every cell's integration cuts its ranges (the model's peak hints for wi).
+    hints: Vec<DVec3>,
+    /// ∫ Y(f_r) dA per cell (the seed's I_i, unnormalised).
+    mass: Vec<f64>,
+}
+
+impl Validation {
+    /// Integrates the luminance of f_r(wi, ·) over every cell. `tol` is the absolute error
+    /// allowed per cell **relative to the total** (1e-7: for 10⁶ samples, 0.1 expected sample
+    /// per cell at worst). `wi` must be above the horizon; the model must have a continuous
+    /// part.
+    pub fn new<B: Brdf + ?Sized>(
+        brdf: &B,
+        wi: Vec3,
+        grid: CellGrid,
+        tol: f64,
+    ) -> Result<Self, ValidateError> {
+        let wi = unit_direction_above(wi)?;
+        grid.check()?;
+        if brdf.is_delta() {
+            return Err(ValidateError::DeltaModel { model: brdf.name() });
+        }
+        check_tolerance(tol)?;
+        // The model's own peak directions (data of the model, not of any sampler): a lobe
+        // narrower than a cell's node spacing is found there (see `integrate::adaptive`).
+        let hints: Vec<DVec3> = brdf
+            .peak_hints(brdf_core::geometry::lift_incident(wi))
+            .as_slice()
+            .iter()
+            .map(|h| h.as_dvec3())
+            .collect();
+        Ok(Self::integrated(
+            &|w: Vec3| f64::from(brdf.eval_luminance(wi, w)),
+            hints,
+            grid,
+            tol,
+        ))
+    }
+
+    /// The same for a BSDF outside this workspace, given as an oracle: `fcos(wo)` is the
+    /// luminance of f_r(wi, wo)·cos θo at the fixed incident direction of the sampler under
+    /// test (per unit solid angle; 0 at and below the horizon). `peaks`: directions where it
+    /// may peak sharply (a mirror direction; up to four are used), so that a lobe narrower
+    /// than the integrator's node spacing is not missed. `tol` as in [`Validation::new`].
+    pub fn of_fcos(
+        fcos: impl Fn(Vec3) -> f64 + Sync,
+        peaks: &[Vec3],
+        grid: CellGrid,
+        tol: f64,
+    ) -> Result<Self, ValidateError> {
+        grid.check()?;
+        check_tolerance(tol)?;
+        let hints = peaks.iter().map(|h| h.as_dvec3()).collect();
+        // Per unit projected area: f·cos dω = f dA.
+        let per_area = |w: Vec3| {
+            if w.z > 0.0 {
+                fcos(w) / f64::from(w.z)
+            } else {
+                0.0
+            }
+        };
+        Ok(Self::integrated(&per_area, hints, grid, tol))
+    }
+
+    /// Integrates `g` (per unit projected area) over the cells to `tol` relative to a coarse
+    /// total.
+    fn integrated(
+        g: &(dyn Fn(Vec3) -> f64 + Sync),
+        hints: Vec<DVec3>,
+        grid: CellGrid,
+        tol: f64,
+    ) -> Self {
+        // A coarse total sets the absolute scale of the tolerance.
+        let coarse: f64 = CellGrid::Polar {
+            rings: 8,
+            sectors: 16,
+        }
+        .integrate_all(1e-3, &hints, g)
+        .iter()
+        .sum();
+        let abs_tol = tol * coarse.abs().max(1e-300);
+        let mass = grid.integrate_all(abs_tol, &hints, g);
+        Self {
+            grid,
+            tol: abs_tol,
+            hints,
+            mass,
+        }
+    }
+
+    /// The cells.
+    #[must_use]
+    pub fn grid(&self) -> CellGrid {
+        self.grid
+    }
+
+    /// ∫ Y(f_r) dA per cell (the seed's I_i).
+    #[must_use]
+    pub fn mass(&self) -> &[f64] {
+        &self.mass
+    }
+
+    /// Draws `samples` directions from `sampler` (which must be for this BRDF and `wi`),
+    /// histograms them, and judges them at per-test significance `alpha` (see [`sidak`]).
+    /// Serial: one random stream for all samples.
+    pub fn test<S: Sampler + ?Sized>(
+        &self,
+        sampler: &S,
+        samples: u64,
+        rng: &mut dyn Rng,
+        alpha: f64,
+    ) -> Report {
+        let counts = self.count(sampler, 0..samples, rng);
+        self.judge(sampler, samples, counts, alpha)
+    }
+
+    /// As [`Validation::test`], with the samples split into chunks of [`CHUNK`] drawn from
+    /// their own streams: chunk k (samples k·CHUNK ..) uses `rng_for_chunk(k)`. The chunks
+    /// run in parallel with rayon; the counts are summed in chunk order, so
+    /// the report is bit-identical to the serial run and does not depend on the thread count.
+    pub fn test_chunked<S, R, F>(
+        &self,
+        sampler: &S,
+        samples: u64,
+        rng_for_chunk: F,
+        alpha: f64,
+    ) -> Report
+    where
+        S: Sampler + ?Sized,
+        R: Rng,
+        F: Fn(u64) -> R + Sync,
+    {
+        let chunks = samples.div_ceil(CHUNK);
+        let one = |k: u64| {
+            let mut rng = rng_for_chunk(k);
+            self.count(sampler, k * CHUNK..samples.min((k + 1) * CHUNK), &mut rng)
+        };
+        let parts: Vec<Counts> = {
+            use rayon::prelude::*;
+            (0..chunks).into_par_iter().map(one).collect()
+        };
+        let mut total = Counts::new(self.grid.len());
+        for p in &parts {
+            total.add(p);
+        }
+        self.judge(sampler, samples, total, alpha)
+    }
+
+    /// Histograms the samples with indices in `range` (the index decides which samples get
+    /// the consistency check: every one of the first 10⁴, then one in 64).
+    fn count<S: Sampler + ?Sized>(
+        &self,
+        sampler: &S,
+        range: std::ops::Range<u64>,
+        rng: &mut dyn Rng,
+    ) -> Counts {
+        let mut c = Counts::new(self.grid.len());
+        for k in range {
+            let Some(s) = sampler.draw(rng) else {
+                c.lost += 1;
+                continue;
+            };
+            let Some(cell) = (!s.delta).then(|| self.grid.cell_of(s.wo)).flatten() else {
+                c.outside += 1;
+                continue;
+            };
+            c.observed[cell] += 1;
+            if k < 10_000 || k % 64 == 0 {
+                let p = sampler.pdf(s.wo);
+                let ok_pdf = (p - s.pdf).abs() <= 1e-4 * s.pdf.abs().max(p.abs());
+                let ok_w = s.f_and_weight.is_none_or(|(f, weight)| {
+                    let w = f * s.wo.z / s.pdf;
+                    (weight - w).abs() <= 1e-4 * w.abs() + 1e-30
+                });
+                if !(ok_pdf && ok_w) {
+                    c.inconsistent += 1;
+                }
+            }
+        }
+        c
+    }
+
+    /// Judges histogrammed counts.
+    fn judge<S: Sampler + ?Sized>(
+        &self,
+        sampler: &S,
+        samples: u64,
+        counts: Counts,
+        alpha: f64,
+    ) -> Report {
+        let mut reasons: Vec<Reason> = Vec::new();
+        let total: f64 = self.mass.iter().sum();
+        if !(total > 0.0 && total.is_finite()) || self.mass.iter().any(|&x| x.is_nan() || x < 0.0) {
+            reasons.push(Reason::MassesNotADistribution { total });
+        }
+        let Counts {
+            observed,
+            lost,
+            outside,
+            inconsistent,
+        } = counts;
+        let m = samples as f64;
+        let expected: Vec<f64> = self.mass.iter().map(|x| m * x / total).collect();
+        let in_empty_cells: u64 = observed
+            .iter()
+            .zip(&expected)
+            .filter(|&(_, &e)| e <= 0.0)
+            .map(|(&o, _)| o)
+            .sum();
+        // χ² against f·cos: lost and outside samples have an expectation of 0 there.
+        let chi2 = chi_square(&observed, &expected);
+        // χ² against the sampler's own pdf: ∫ pdf dω = ∫ pdf / cos θ dA.
+        let own = self
+            .grid
+            .integrate_all(self.tol / total.max(1e-300), &self.hints, &|w: Vec3| {
+                let p = f64::from(sampler.pdf(w));
+                if w.z > 0.0 { p / f64::from(w.z) } else { 0.0 }
+            });
+        let own_total: f64 = own.iter().sum();
+        let mut expected_own: Vec<f64> = own.iter().map(|x| m * x).collect();
+        let mut observed_own = observed.clone();
+        expected_own.push(m * (1.0 - own_total).max(0.0));
+        observed_own.push(lost);
+        let chi2_own = chi_square(&observed_own, &expected_own);
+        expected_own.pop();
+        if own_total > 1.0 + 1e-3 {
+            reasons.push(Reason::PdfAboveOne {
+                integral: own_total,
+            });
+        }
+        for (against, test) in [(Against::FCos, &chi2), (Against::OwnPdf, &chi2_own)] {
+            match test {
+                None => reasons.push(Reason::TooFewDegreesOfFreedom { against }),
+                Some(c) if c.p_value.is_nan() || c.p_value < alpha => {
+                    reasons.push(Reason::ChiSquare {
+                        against,
+                        statistic: c.statistic,
+                        dof: c.dof,
+                        p_value: c.p_value,
+                        alpha,
+                    });
+                }
+                Some(_) => {}
+            }
+        }
+        if samples > 0 && lost == samples {
+            reasons.push(Reason::AllLost { samples });
+        } else if lost > 0 {
+            reasons.push(Reason::Lost { count: lost });
+        }
+        if outside > 0 {
+            reasons.push(Reason::Outside { count: outside });
+        }
+        if in_empty_cells > 0 {
+            reasons.push(Reason::InEmptyCells {
+                count: in_empty_cells,
+            });
+        }
+        if inconsistent > 0 {
+            reasons.push(Reason::Inconsistent {
+                count: inconsistent,
+            });
+        }
+        Report {
+            sampler: sampler.name().to_string(),
+            samples,
+            spread: spread(&observed, &self.mass, &expected, m),
+            histogram: Histogram {
+                grid: self.grid,
+                observed,
+                expected,
+                expected_own: Some(expected_own),
+                mass: self.mass.clone(),
+            },
+            lost,
+            outside,
+            inconsistent,
+            in_empty_cells,
+            chi2,
+            chi2_own,
+            alpha,
+            reasons,
+        }
+    }
+}
+
+fn check_tolerance(tol: f64) -> Result<(), ValidateError> {
+    if tol > 0.0 && tol < 1.0 {
+        Ok(())
+    } else {
+        Err(ValidateError::Tolerance { value: tol })
+    }
+}
