@@ -28,7 +28,7 @@ fn run(
     against: Against,
 ) -> SuiteReport {
     let wi = incident(theta);
-    let sampler = FnSampler::new("ggx", |uc, u| sample(uc, u), |wo| pdf(wo));
+    let sampler = FnSampler::new("ggx", sample, pdf);
     let mirror = Vec3::new(-wi.x, -wi.y, wi.z);
     check(
         &sampler,
