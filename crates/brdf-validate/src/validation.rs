@@ -166,7 +166,7 @@ impl Validation {
     }
 
     /// Draws `samples` directions from `sampler` (which must be for this BRDF and `wi`),
-    /// histograms them, and judges them at per-test significance `alpha` (see [`sidak`]).
+    /// histograms them, and judges them at per-test significance `alpha` (see [`crate::sidak`]).
     /// Serial: one random stream for all samples.
     pub fn test<S: Sampler + ?Sized>(
         &self,
