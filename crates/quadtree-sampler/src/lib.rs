@@ -9,7 +9,7 @@
 //!
 //! | seed | here |
 //! | --- | --- |
-//! | `Codificador` | [`Encoder`] (and [`brdf_core::DiskMap`]) |
+//! | `Codificador` | [`brdf_core::Frame`] (world ↔ local) and [`brdf_core::DiskMap`] (local ↔ square) |
 //! | `Nodo`, `Region` | [`Node`] in the arena [`Quadtree`]; [`PackedNode`] in the sampling layout [`PackedTree`] |
 //! | `particionar` | the build inside [`QuadtreeSampler::new`] |
 //! | `seleccionarRegion` | [`QuadtreeSampler::select_region`] |
@@ -88,13 +88,14 @@ pub use baked::{
 };
 pub use brdf_core;
 pub use config::{BuildConfig, EVALUATIONS_PER_NODE, IntegrationRule};
-pub use encoder::{Encoder, refleja};
+pub use encoder::refleja;
 pub use error::BuildError;
 pub use factory::{AnySampler, SamplerMode};
 pub use packed::{PackedNode, PackedTree, Selected};
 pub use sampler::{
-    Baseline, BaselineSampler, DirectionSampler, MAX_TRIALS, MAX_USABLE_EXPECTED_TRIALS,
-    QuadtreeSampler, Sample, descent_uniform, uniform_f32, uniform_f64, weight_luminance,
+    Baseline, BaselineSampler, DirectionSampler, LeafSample, MAX_TRIALS,
+    MAX_USABLE_EXPECTED_TRIALS, QuadtreeSampler, Sample, descent_uniform, uniform_f32, uniform_f64,
+    weight_luminance,
 };
 pub use table::{DEFAULT_TABLE_RES, TableSampler};
 pub use tree::{LEAF, Node, Quadtree, TreeStats, albedo_of_volume};

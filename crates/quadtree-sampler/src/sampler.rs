@@ -68,6 +68,19 @@ pub trait DirectionSampler: Send + Sync {
     fn pdf(&self, wo: Vec3) -> f32;
 }
 
+/// What `muestrear` accepted in a leaf ([`QuadtreeSampler::sample_leaf`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LeafSample {
+    /// The accepted point of the leaf's proposal chart (and its direction in f64).
+    pub point: ChartPoint,
+    /// The accepted direction as the unit f32 vector the sample reports (local frame).
+    pub wo: Vec3,
+    /// f_r(wi, wo), RGB, evaluated at exactly `wo`.
+    pub f: Vec3,
+    /// Rejection trials spent.
+    pub trials: u32,
+}
+
 /// `muestrear` on a packed tree for any f (the quadtree's own model, or a baked sampler's
 /// grid model): a point uniform in the leaf's proposal box, a height uniform in [0, M);
 /// accept when the height is below Y(f)·(chart Jacobian). Returns the accepted chart point,
@@ -213,26 +226,13 @@ impl<B: Brdf> QuadtreeSampler<B> {
 
     /// `muestrear`: rejection in the selected leaf: a point uniform in the leaf's proposal
     /// box, a height uniform in [0, M); accept when the height is below f (times the chart's
-    /// Jacobian). Returns the accepted point and the number of trials.
-    pub fn sample_leaf<R: Rng + ?Sized>(
-        &self,
-        leaf: &Selected,
-        rng: &mut R,
-    ) -> Option<(ChartPoint, u32)> {
-        self.rejection(leaf, rng).map(|(c, _, _, t)| (c, t))
-    }
-
-    /// The rejection loop of [`QuadtreeSampler::sample_leaf`], also returning the accepted
-    /// direction as the unit f32 vector a caller sees and f_r there (RGB). f is evaluated once
-    /// per trial, at exactly that vector, so the accepted value *is* `eval(wi, wo)` and its
-    /// luminance is what [`QuadtreeSampler::pdf`] computes: no second evaluation is needed.
-    /// One 64-bit draw places the point (32 bits per axis: 2⁻³² of the leaf's side) and one
-    /// more the height.
-    fn rejection<R: Rng + ?Sized>(
-        &self,
-        leaf: &Selected,
-        rng: &mut R,
-    ) -> Option<(ChartPoint, Vec3, Vec3, u32)> {
+    /// Jacobian). f is evaluated once per trial, at exactly the unit f32 vector a caller
+    /// sees, so the accepted value *is* `eval(wi, wo)` and its luminance is what
+    /// [`QuadtreeSampler::pdf`] computes: no second evaluation is needed. One 64-bit draw
+    /// places the point (32 bits per axis: 2⁻³² of the leaf's side) and one more the height.
+    /// `None` after [`MAX_TRIALS`] (counted in [`QuadtreeSampler::gave_up`]) or for a leaf
+    /// that holds nothing.
+    pub fn sample_leaf<R: Rng + ?Sized>(&self, leaf: &Selected, rng: &mut R) -> Option<LeafSample> {
         let r = rejection_in_leaf(
             &self.tree,
             leaf,
@@ -243,7 +243,12 @@ impl<B: Brdf> QuadtreeSampler<B> {
         if r.is_none() {
             self.gave_up.fetch_add(1, Ordering::Relaxed);
         }
-        r
+        r.map(|(point, wo, f, trials)| LeafSample {
+            point,
+            wo,
+            f,
+            trials,
+        })
     }
 
     /// Draws one direction: select a region with a 53-bit uniform from `rng`, then
@@ -257,7 +262,7 @@ impl<B: Brdf> QuadtreeSampler<B> {
     /// (`select_region(u)`, then `sample_leaf` drawing the rejection trials from `rng`).
     pub fn sample_from<R: Rng + ?Sized>(&self, u: f64, rng: &mut R) -> Option<Sample> {
         let leaf = self.select_region(u);
-        let (_, wo, f, trials) = self.rejection(&leaf, rng)?;
+        let LeafSample { wo, f, trials, .. } = self.sample_leaf(&leaf, rng)?;
         if !above_horizon(wo) {
             return None;
         }

@@ -784,22 +784,29 @@ mod random {
     }
 }
 
-/// The Codificador: world → square → world round-trips through a tilted frame, and `wi` on the
-/// wrong side of the normal is an error.
+/// The Codificador (a `Frame` and a `DiskMap`): world → square → world round-trips through
+/// a tilted frame, and `refleja` refuses a `wi` on the wrong side of the normal.
 #[test]
-fn encoder_round_trips_world_directions() {
-    use quadtree_sampler::Encoder;
+fn codificador_round_trips_world_directions() {
+    use brdf_core::Frame;
     let n = Vec3::new(0.3, -0.5, 0.8).normalize();
     let wi = (n + Vec3::new(0.2, 0.4, 0.1)).normalize();
+    let frame = Frame::from_normal(n).unwrap();
+    assert!((frame.to_world(frame.to_local(wi)) - wi).length() < 1e-6);
     for map in [DiskMap::Orthographic, DiskMap::Concentric] {
-        let enc = Encoder::new(wi, n, map).unwrap();
-        assert!((enc.frame().to_world(enc.wi_local()) - wi).length() < 1e-6);
         for k in 0..50 {
             let local = dir(80.0 * k as f64 / 50.0, 7.3 * k as f64);
-            let w = enc.frame().to_world(local);
-            let back = enc.to_direction(enc.to_square(w)).unwrap();
+            let w = frame.to_world(local);
+            let square = map.direction_to_square(frame.to_local(w));
+            let back = frame.to_world(map.square_to_direction(square).unwrap());
             assert!((back - w).length() < 1e-4, "{map:?}: {w} -> {back}");
         }
     }
-    assert!(Encoder::new(-n, n, DiskMap::Orthographic).is_err());
+    let lambert = registry::create("lambert", [] as [&str; 0]).unwrap();
+    let mut rng = Pcg64::seed_from_u64(3);
+    assert!(refleja(&*lambert, -n, n, &mut rng).is_err());
+    let s = quadtree_sampler::refleja(&*lambert, wi, n, &mut rng)
+        .unwrap()
+        .unwrap();
+    assert!(s.wo.dot(n) > 0.0 && (s.wo.length() - 1.0).abs() < 1e-5);
 }
