@@ -10,7 +10,7 @@
 
 use crate::math as m;
 use core::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
-use glam::{Vec2, Vec3};
+use glam::{DVec2, DVec3, Vec2, Vec3};
 
 /// Concentric map (Shirley–Chiu 1997) from the square [−1,1]² onto the unit disk.
 /// Area scales by the constant [`CONCENTRIC_DISK_AREA_PER_SQUARE_AREA`] = π/4.
@@ -51,6 +51,28 @@ pub fn disk_to_square_concentric(d: Vec2) -> Vec2 {
     } else {
         Vec2::new(-r * (3.0 * FRAC_PI_2 - phi) / FRAC_PI_4, -r)
     }
+}
+
+/// The concentric map in f64 at square point `p`, lifted to the hemisphere with the given z
+/// (the caller knows z = √(1 − r²), r = max(|a|, |b|), often without cancellation: the sine
+/// chart of a rim node has it as the cosine of an angle). The one f64 copy of the map: the
+/// quadtree's charts and the f64 [`DiskMap::square_to_direction_f64`] use it.
+#[inline]
+#[must_use]
+pub fn concentric_direction_f64(p: DVec2, z: f64) -> DVec3 {
+    let (a, b) = (p.x, p.y);
+    if a == 0.0 && b == 0.0 {
+        return DVec3::new(0.0, 0.0, 1.0);
+    }
+    let (r, phi) = if a.abs() > b.abs() {
+        (a, core::f64::consts::FRAC_PI_4 * (b / a))
+    } else {
+        (
+            b,
+            core::f64::consts::FRAC_PI_2 - core::f64::consts::FRAC_PI_4 * (a / b),
+        )
+    };
+    DVec3::new(r * m::cos(phi), r * m::sin(phi), z)
 }
 
 /// The constant Jacobian of [`square_to_disk_concentric`]: disk area per unit square area.
@@ -103,6 +125,26 @@ impl DiskMap {
                     return Some(Vec3::new(d.x, d.y, 0.0));
                 }
                 Some(Vec3::new(d.x, d.y, m::sqrtf(1.0 - r2)))
+            }
+        }
+    }
+
+    /// [`DiskMap::square_to_direction`] in f64 (what the quadtree's integration and bounds
+    /// evaluate), with z computed without cancellation: √((1 − r)(1 + r)).
+    #[inline]
+    #[must_use]
+    pub fn square_to_direction_f64(self, p: DVec2) -> Option<DVec3> {
+        match self {
+            Self::Orthographic => {
+                let r2 = p.length_squared();
+                if r2 > 1.0 {
+                    return None;
+                }
+                Some(DVec3::new(p.x, p.y, m::sqrt((1.0 - r2).max(0.0))))
+            }
+            Self::Concentric => {
+                let r = p.x.abs().max(p.y.abs()).min(1.0);
+                Some(concentric_direction_f64(p, m::sqrt((1.0 - r) * (1.0 + r))))
             }
         }
     }
@@ -202,6 +244,29 @@ mod tests {
         }
         assert_eq!(DiskMap::Orthographic.square_to_direction(Vec2::ONE), None);
         assert!(DiskMap::Concentric.square_to_direction(Vec2::ONE).is_some());
+    }
+
+    #[test]
+    fn the_f64_map_is_the_f32_one() {
+        for map in [DiskMap::Orthographic, DiskMap::Concentric] {
+            for p in grid() {
+                let lo = map.square_to_direction(p);
+                let hi = map.square_to_direction_f64(p.as_dvec2());
+                // On the orthographic rim, f32 and f64 round r² to either side of 1.
+                let on_rim = (p.as_dvec2().length_squared() - 1.0).abs() < 1e-6;
+                assert!(on_rim || lo.is_some() == hi.is_some(), "{map:?} {p}");
+                if let (Some(lo), Some(hi)) = (lo, hi) {
+                    assert!((hi.length() - 1.0).abs() < 1e-12, "{map:?} {p}: {hi}");
+                    // f32's z cancels at the rim (1 − r²); f64's does not: compare z off it.
+                    let tol_z = if hi.z > 0.01 { 1e-6 } else { 1e-3 };
+                    let d = lo.as_dvec3() - hi;
+                    assert!(
+                        d.truncate().length() < 1e-6 && d.z.abs() < tol_z,
+                        "{map:?} {p}: {lo} vs {hi}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]

@@ -54,7 +54,6 @@
 //! lobe then smears between slices. The rotation above keeps sharp lobes sharp between
 //! slices and the mixture keeps the pdf exact.
 
-use crate::chart::square_direction;
 use crate::config::BuildConfig;
 use crate::error::BuildError;
 use crate::packed::PackedTree;
@@ -1024,7 +1023,7 @@ impl BakedSampler {
                 BakedMode::Warp => {
                     let (p, leaf) = s.warp.warp(u.as_dvec2())?;
                     drawn = Some((pick, leaf));
-                    square_direction(s.tree.map(), p)?
+                    s.tree.map().square_to_direction_f64(p)?
                 }
             };
             (c.to_local * w).as_vec3().normalize_or_zero()

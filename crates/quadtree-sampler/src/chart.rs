@@ -30,7 +30,7 @@
 use brdf_core::DiskMap;
 use brdf_core::math as m;
 use brdf_core::quadrature::GaussLegendre;
-use core::f64::consts::{FRAC_PI_2, FRAC_PI_4};
+use core::f64::consts::FRAC_PI_2;
 use glam::{DVec2, DVec3};
 
 /// An axis-aligned square (or rectangle) of the seed's domain, in f64.
@@ -173,43 +173,8 @@ pub fn sine_point(alpha: f64, beta: f64) -> ChartPoint {
     let z = if sa.abs() >= sb.abs() { ca } else { cb };
     ChartPoint {
         p,
-        w: concentric_direction(p, z),
+        w: brdf_core::maps::concentric_direction_f64(p, z),
         jacobian: ca * cb,
-    }
-}
-
-/// The concentric map's direction at square point `p` with its z already known.
-#[inline]
-fn concentric_direction(p: DVec2, z: f64) -> DVec3 {
-    let (a, b) = (p.x, p.y);
-    if a == 0.0 && b == 0.0 {
-        return DVec3::new(0.0, 0.0, 1.0);
-    }
-    let (r, phi) = if a.abs() > b.abs() {
-        (a, FRAC_PI_4 * (b / a))
-    } else {
-        (b, FRAC_PI_2 - FRAC_PI_4 * (a / b))
-    };
-    DVec3::new(r * m::cos(phi), r * m::sin(phi), z)
-}
-
-/// The direction of square point `p` under `map` (None outside the orthographic disk), with
-/// z computed without cancellation.
-#[inline]
-#[must_use]
-pub fn square_direction(map: DiskMap, p: DVec2) -> Option<DVec3> {
-    match map {
-        DiskMap::Orthographic => {
-            let r2 = p.length_squared();
-            if r2 > 1.0 {
-                return None;
-            }
-            Some(DVec3::new(p.x, p.y, m::sqrt((1.0 - r2).max(0.0))))
-        }
-        DiskMap::Concentric => {
-            let r = p.x.abs().max(p.y.abs()).min(1.0);
-            Some(concentric_direction(p, m::sqrt((1.0 - r) * (1.0 + r))))
-        }
     }
 }
 
@@ -795,7 +760,7 @@ impl Proposal {
     #[must_use]
     pub fn point(&self, map: DiskMap, rect: &Rect, q: DVec2) -> Option<ChartPoint> {
         match self.chart {
-            Chart::Square => square_direction(map, q).map(|w| ChartPoint {
+            Chart::Square => map.square_to_direction_f64(q).map(|w| ChartPoint {
                 p: q,
                 w,
                 jacobian: 1.0,
@@ -1079,7 +1044,7 @@ mod tests {
                     assert!((c.w.length() - 1.0).abs() < 1e-12);
                     let back = prop.coordinates(map, c.w);
                     assert!((back - q).length() < 1e-5, "{map:?} {r:?} {q} -> {back}");
-                    if let Some(w2) = square_direction(map, c.p) {
+                    if let Some(w2) = map.square_to_direction_f64(c.p) {
                         assert!((w2 - c.w).length() < 1e-9);
                     }
                 }

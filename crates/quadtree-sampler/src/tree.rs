@@ -125,7 +125,9 @@ fn edge_rim_points(rect: &Rect) -> Vec<(f64, f64)> {
         let pad = (p1 - p0) * 1e-9;
         for j in 0..9 {
             let p = p0 + pad + (p1 - p0 - 2.0 * pad) * (j as f64 / 8.0);
-            let w = crate::chart::square_direction(DiskMap::Concentric, p).unwrap_or(DVec3::Z);
+            let w = DiskMap::Concentric
+                .square_to_direction_f64(p)
+                .unwrap_or(DVec3::Z);
             let r = m::sqrt(w.x * w.x + w.y * w.y);
             if r > 0.0 {
                 points.push((w.x / r, w.y / r));
@@ -457,7 +459,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
                 }
             };
             let pc = p.clamp(rect.min, rect.max - (rect.max - rect.min) * 1e-9);
-            let Some(wc) = crate::chart::square_direction(map, pc) else {
+            let Some(wc) = map.square_to_direction_f64(pc) else {
                 continue;
             };
             let q = prop.coordinates(map, wc).clamp(lo, hi);

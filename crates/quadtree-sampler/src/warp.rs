@@ -166,7 +166,7 @@ impl<B: Brdf> WarpSampler<B> {
     #[must_use]
     pub fn sample_warp(&self, u: Vec2) -> Option<Sample> {
         let (p, leaf) = self.warp_to_square(u.as_dvec2());
-        let w = crate::chart::square_direction(DiskMap::Concentric, p)?;
+        let w = DiskMap::Concentric.square_to_direction_f64(p)?;
         let wo = w.as_vec3().normalize();
         if !above_horizon(wo) {
             return None;
