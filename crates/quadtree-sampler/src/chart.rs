@@ -52,6 +52,13 @@ impl Rect {
         }
     }
 
+    /// Its area in square units.
+    #[must_use]
+    pub fn area(&self) -> f64 {
+        let d = self.max - self.min;
+        d.x * d.y
+    }
+
     /// The four quadrants, in the order (−,−), (+,−), (−,+), (+,+).
     #[must_use]
     pub fn quadrants(&self) -> [Self; 4] {

@@ -91,7 +91,7 @@ pub use config::{BuildConfig, EVALUATIONS_PER_NODE, IntegrationRule};
 pub use encoder::refleja;
 pub use error::BuildError;
 pub use factory::{AnySampler, SamplerMode};
-pub use packed::{PackedNode, PackedTree, Selected};
+pub use packed::{PackedLeaf, PackedNode, PackedTree, Selected};
 pub use sampler::{
     Baseline, BaselineSampler, DirectionSampler, LeafSample, MAX_TRIALS,
     MAX_USABLE_EXPECTED_TRIALS, QuadtreeSampler, Sample, descent_uniform, uniform_f32, uniform_f64,

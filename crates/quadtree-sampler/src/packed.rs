@@ -27,7 +27,7 @@
 //! leaves, far under what any histogram test can see.
 
 use crate::chart::{Chart, Proposal, Rect};
-use crate::tree::{LEAF, Node, Quadtree, TreeStats, round_up_f32 as round_up};
+use crate::tree::{Node, Quadtree, TreeStats, round_up_f32 as round_up};
 use alloc::vec::Vec;
 use brdf_core::DiskMap;
 
@@ -103,6 +103,43 @@ pub struct Selected {
     pub rect: Rect,
     /// Its depth (root = 0).
     pub depth: u8,
+}
+
+/// One leaf of a [`PackedTree`] as inspection sees it (the viewer, exports, statistics):
+/// everything sampling uses, read from the packed layout itself.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PackedLeaf {
+    /// The leaf's index in [`PackedTree::nodes`].
+    pub index: usize,
+    /// Its square (exact, as the descent computes it).
+    pub rect: Rect,
+    /// Its depth (root = 0).
+    pub depth: u8,
+    /// Whether selection can reach it (v1 > 0 when packed).
+    pub live: bool,
+    /// v1 as stored (f32).
+    pub v1: f64,
+    /// M as sampled (f32, rounded up).
+    pub bound: f64,
+    /// The box rejection samples it in.
+    pub proposal: Proposal,
+    /// The exact probability that [`PackedTree::select`] returns it.
+    pub probability: f64,
+}
+
+impl PackedLeaf {
+    /// The rejection box's volume: proposal area × M.
+    #[must_use]
+    pub fn box_volume(&self) -> f64 {
+        self.proposal.area() * self.bound
+    }
+
+    /// The seed's P = v1 / box volume: the acceptance probability of a trial in this leaf.
+    #[must_use]
+    pub fn acceptance(&self) -> f64 {
+        let b = self.box_volume();
+        if b > 0.0 { self.v1 / b } else { 0.0 }
+    }
 }
 
 /// A quadtree in its sampling layout (see the module doc): 16 bytes per node, the same node
@@ -222,10 +259,10 @@ impl PackedTree {
             rim: Vec::new(),
             map: tree.map(),
             volume: tree.volume(),
-            stats: tree.stats(),
+            stats: TreeStats::default(),
         };
         packed.index_rim();
-        packed.restat();
+        packed.stats = packed.count(tree.stats().budget_exhausted);
         packed
     }
 
@@ -265,18 +302,76 @@ impl PackedTree {
         }
     }
 
-    /// E\[T\] and bytes as sampled: with the f32 bounds and the packed size.
-    fn restat(&mut self) {
+    /// The statistics as sampled, from the packed layout itself: counts and depths of the
+    /// leaves, the packed size, and E\[T\] with the f32 bounds and v1 of the live leaves.
+    fn count(&self, budget_exhausted: bool) -> TreeStats {
+        let mut s = TreeStats {
+            nodes: self.nodes.len(),
+            bytes: core::mem::size_of_val(self.nodes.as_slice())
+                + core::mem::size_of_val(self.rim.as_slice()),
+            budget_exhausted,
+            ..TreeStats::default()
+        };
         let (mut boxes, mut v1s) = (0.0, 0.0);
-        for (p, n) in self.nodes.iter().zip(self.unpacked_nodes()) {
-            if p.is_live_leaf() {
-                boxes += n.box_volume();
-                v1s += n.v1;
+        for leaf in self.leaves() {
+            s.leaves += 1;
+            s.max_depth = s.max_depth.max(leaf.depth);
+            let d = usize::from(leaf.depth);
+            if s.depth_histogram.len() <= d {
+                s.depth_histogram.resize(d + 1, 0);
+            }
+            s.depth_histogram[d] += 1;
+            if leaf.live {
+                s.live_leaves += 1;
+                boxes += leaf.box_volume();
+                v1s += leaf.v1;
             }
         }
-        self.stats.expected_trials = if v1s > 0.0 { boxes / v1s } else { 0.0 };
-        self.stats.bytes = core::mem::size_of_val(self.nodes.as_slice())
-            + core::mem::size_of_val(self.rim.as_slice());
+        s.expected_trials = if v1s > 0.0 { boxes / v1s } else { 0.0 };
+        s
+    }
+
+    /// Every leaf in node order, with its square, stored values, proposal and exact
+    /// selection probability: inspection reads the sampling layout, it never unpacks it.
+    #[must_use]
+    pub fn leaves(&self) -> Vec<PackedLeaf> {
+        let probabilities = self.selection_probabilities();
+        self.squares()
+            .into_iter()
+            .enumerate()
+            .filter(|&(i, _)| self.nodes[i].is_leaf())
+            .map(|(index, (rect, depth))| {
+                let n = self.nodes[index];
+                let (proposal, _) = self.proposal(&Selected { index, rect, depth });
+                PackedLeaf {
+                    index,
+                    rect,
+                    depth,
+                    live: n.is_live_leaf(),
+                    v1: f64::from(f32::from_bits(n.data[1])),
+                    bound: f64::from(f32::from_bits(n.data[0])),
+                    proposal,
+                    probability: probabilities[index],
+                }
+            })
+            .collect()
+    }
+
+    /// The index of the leaf whose square holds the square point `p` (points on a split line
+    /// go to the upper child, as in [`Quadtree::leaf_at`]).
+    #[must_use]
+    pub fn leaf_at(&self, p: glam::DVec2) -> usize {
+        let (mut i, mut rect) = (0usize, Rect::square(-1.0, -1.0, 2.0));
+        loop {
+            let n = self.nodes[i];
+            if n.is_leaf() {
+                return i;
+            }
+            let mid = 0.5 * (rect.min + rect.max);
+            let k = usize::from(p.x >= mid.x) + 2 * usize::from(p.y >= mid.y);
+            rect = rect.quadrants()[k];
+            i = n.link as usize + k;
+        }
     }
 
     /// The nodes, root first.
@@ -381,63 +476,6 @@ impl PackedTree {
         )
     }
 
-    /// The tree as [`Node`]s again, for inspection (the viewer, exports): squares and depths
-    /// exact, bounds as sampled (f32), v1 from the f32 leaf values summed upward.
-    #[must_use]
-    pub fn unpacked_nodes(&self) -> Vec<Node> {
-        let mut out = alloc::vec![
-            Node {
-                x: -1.0,
-                y: -1.0,
-                size: 2.0,
-                depth: 0,
-                first_child: LEAF,
-                v1: 0.0,
-                bound: 0.0,
-                proposal: Proposal {
-                    chart: Chart::Square,
-                    lo: glam::DVec2::splat(-1.0),
-                    hi: glam::DVec2::splat(1.0),
-                },
-            };
-            self.nodes.len()
-        ];
-        for (i, (rect, depth)) in self.squares().into_iter().enumerate() {
-            let n = self.nodes[i];
-            out[i].x = rect.min.x as f32;
-            out[i].y = rect.min.y as f32;
-            out[i].size = (rect.max.x - rect.min.x) as f32;
-            out[i].depth = depth;
-            if n.is_leaf() {
-                let sel = Selected {
-                    index: i,
-                    rect,
-                    depth,
-                };
-                let (prop, _) = self.proposal(&sel);
-                out[i].proposal = prop;
-                out[i].bound = f64::from(f32::from_bits(n.data[0]));
-                out[i].v1 = f64::from(f32::from_bits(n.data[1]));
-            } else {
-                out[i].first_child = n.link;
-            }
-        }
-        for i in (0..out.len()).rev() {
-            let c = out[i].first_child as usize;
-            if c != LEAF as usize {
-                out[i].v1 = (c..c + 4).map(|k| out[k].v1).sum();
-            }
-        }
-        out
-    }
-
-    /// The tree as a [`Quadtree`] again, for inspection (see
-    /// [`PackedTree::unpacked_nodes`]).
-    #[must_use]
-    pub fn unpack(&self) -> Quadtree {
-        Quadtree::from_parts(self.unpacked_nodes(), self.map, self.stats.budget_exhausted)
-    }
-
     /// The raw words of every node (`link`, then `data`), for serialisation.
     #[must_use]
     pub(crate) fn raw_nodes(&self) -> Vec<[u32; 4]> {
@@ -532,8 +570,7 @@ impl PackedTree {
             stats: TreeStats::default(),
         };
         packed.index_rim();
-        packed.stats = Quadtree::from_parts(packed.unpacked_nodes(), map, budget_exhausted).stats();
-        packed.restat();
+        packed.stats = packed.count(budget_exhausted);
         Ok(packed)
     }
 
@@ -545,7 +582,7 @@ impl PackedTree {
                 n.data[0] = (m as f32).to_bits();
             }
         }
-        self.restat();
+        self.stats = self.count(self.stats.budget_exhausted);
     }
 }
 

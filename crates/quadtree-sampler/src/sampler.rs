@@ -172,7 +172,7 @@ impl<B: Brdf> QuadtreeSampler<B> {
         self.tree.scale_bounds(factor);
     }
 
-    /// The tree, in its sampling layout ([`PackedTree::unpack`] gives the build's).
+    /// The tree, in its sampling layout ([`PackedTree::leaves`] inspects it).
     #[must_use]
     pub fn tree(&self) -> &PackedTree {
         &self.tree

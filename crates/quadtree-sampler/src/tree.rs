@@ -660,15 +660,6 @@ impl Quadtree {
         Self::build(&ctx, cells)
     }
 
-    /// A tree from its parts (nodes in arena order: children after parents).
-    pub(crate) fn from_parts(nodes: Vec<Node>, map: DiskMap, budget_exhausted: bool) -> Self {
-        Self {
-            nodes,
-            map,
-            budget_exhausted,
-        }
-    }
-
     /// Builds the tree of f_r(wi, ·) (`wi` local, above the horizon), splitting every node
     /// whose P is below the threshold (`particionar`), then, in target mode, refining the
     /// leaves with the largest wasted volume until E\[T\] ≤ target.

@@ -332,7 +332,8 @@ fn packed_selection_matches_v1_and_reaches_every_live_leaf() {
         );
         let p = packed.selection_probabilities();
         let volume = tree.volume();
-        let unpacked = packed.unpack();
+        let inspected = packed.leaves();
+        assert_eq!(inspected.len(), tree.leaves().count());
         let unit = 1.0 / f64::from(1u32 << 31);
         // One unit of 2^-31 per leaf, plus one for every leaf under a unit that the minimum
         // width may have pushed along (module doc of `packed`).
@@ -341,7 +342,7 @@ fn packed_selection_matches_v1_and_reaches_every_live_leaf() {
             .filter(|(_, n)| n.v1 > 0.0 && n.v1 / volume < unit)
             .count();
         let mut distance = 0.0;
-        for (i, n) in tree.leaves() {
+        for ((i, n), u) in tree.leaves().zip(&inspected) {
             let want = n.v1 / volume;
             distance += 0.5 * (p[i] - want).abs();
             assert!(
@@ -354,11 +355,15 @@ fn packed_selection_matches_v1_and_reaches_every_live_leaf() {
                 n.v1 > 0.0,
                 "{name}: leaf {i} reachable iff live"
             );
-            // The unpacked node has the same square and depth, and a bound at least as large.
-            let u = unpacked.nodes()[i];
-            assert_eq!((u.x, u.y, u.size, u.depth), (n.x, n.y, n.size, n.depth));
+            // Inspection of the packed leaf: the same square, depth and proposal, a bound at
+            // least as large, v1 to f32, and the selection probability itself.
+            assert_eq!((u.index, u.rect, u.depth), (i, n.rect(), n.depth));
             assert!(u.bound >= n.bound && u.bound <= n.bound * (1.0 + 1e-6));
             assert_eq!(u.proposal, n.proposal);
+            assert_eq!(
+                (u.v1, u.live, u.probability),
+                (f64::from(n.v1 as f32), n.v1 > 0.0, p[i])
+            );
         }
         let leaves = tree.leaves().count() as f64;
         assert!(

@@ -4,15 +4,16 @@
 use crate::export;
 use crate::lobe::{LobeMesh, LobePaint, LobeResources, OrbitCamera, project};
 use crate::views::{self, Background};
-use crate::worker::{FrMap, Request, SampleState, SamplerKind, Update, Worker};
+use crate::worker::{FrMap, Request, SampleState, SamplerKind, TreeView, Update, Worker};
 use brdf_core::geometry::{spherical_angles, spherical_direction};
 use brdf_core::registry::{self, ModelInfo};
 use brdf_core::{Brdf, DiskMap, ParamKind, ParamSet, ParamValue};
 use brdf_validate::{CellGrid, ChiSquare, Histogram, chi_square};
+use eframe::egui::scroll_area::ScrollBarVisibility;
 use eframe::egui::{self, Color32, Rect, Sense, Stroke, TextureHandle, TextureOptions, vec2};
 use eframe::egui_wgpu;
 use glam::{Vec2, Vec3};
-use quadtree_sampler::{BuildConfig, Quadtree, TreeStats};
+use quadtree_sampler::{BuildConfig, TreeStats};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -117,7 +118,7 @@ pub enum GridKind {
 #[derive(Default)]
 struct Results {
     fr: Option<Arc<FrMap>>,
-    tree: Option<(Arc<Quadtree>, TreeStats, f64, f64)>,
+    tree: Option<(Arc<TreeView>, TreeStats, f64, f64)>,
     /// Expected mass per cell, with the grid it was integrated on.
     expected: Option<(CellGrid, Arc<Vec<f64>>)>,
     samples: Option<Arc<SampleState>>,
@@ -183,6 +184,8 @@ pub struct ViewerApp {
 
     /// Where each view was drawn in the last frame (points), for exports.
     view_rects: BTreeMap<&'static str, Rect>,
+    /// Where the disk view's caption was laid out (wrapped inside the view).
+    caption_rect: Rect,
     export_dir: String,
     export_status: Option<String>,
     screenshots: (
@@ -246,6 +249,7 @@ impl ViewerApp {
             lobe_versions: 0,
             has_wgpu,
             view_rects: BTreeMap::new(),
+            caption_rect: Rect::NOTHING,
             export_dir: "viewer-export".into(),
             export_status: None,
             screenshots: channel(),
@@ -312,6 +316,12 @@ impl ViewerApp {
     #[must_use]
     pub fn sample_state(&self) -> Option<&SampleState> {
         self.results.samples.as_deref()
+    }
+
+    /// Where the disk view's caption was drawn in the last frame (inside the disk view).
+    #[must_use]
+    pub fn disk_caption_rect(&self) -> Rect {
+        self.caption_rect
     }
 
     /// Where view `name` (`disk`, `lobe`, `observed`, `expected`, `difference`) was drawn in
@@ -504,7 +514,7 @@ impl ViewerApp {
                     grid: self.grid(),
                     seed: self.seed,
                     map_res: 256,
-                    lobe_res: 48,
+                    lobe_res: 64,
                 }),
                 Err(e) => {
                     self.results.error = Some(e.clone());
@@ -754,9 +764,6 @@ impl ViewerApp {
         if let Some(s) = &self.export_status {
             ui.small(s);
         }
-
-        ui.separator();
-        self.stats(ui);
     }
 
     fn stats(&self, ui: &mut egui::Ui) {
@@ -860,15 +867,13 @@ impl ViewerApp {
             7.0,
             Stroke::new(2.0, Color32::from_rgb(255, 80, 200)),
         );
-        painter.text(
-            rect.left_top() + vec2(4.0, 4.0),
-            egui::Align2::LEFT_TOP,
+        self.caption_rect = caption(
+            &painter,
+            rect,
             format!(
                 "{} square [−1,1]²: + normal, blue dot wi, pink ring mirror (drag to move wi)",
                 map_name(self.map)
             ),
-            egui::FontId::proportional(11.0),
-            Color32::WHITE,
         );
         if (response.dragged() || response.clicked())
             && let Some(pos) = response.interact_pointer_pos()
@@ -939,12 +944,10 @@ impl ViewerApp {
             Color32::from_rgb(255, 80, 200),
         );
         arrow(Vec3::Z, Color32::WHITE);
-        painter.text(
-            rect.left_top() + vec2(4.0, 4.0),
-            egui::Align2::LEFT_TOP,
-            "f_r·cos θo lobe (drag to orbit) — blue wi, pink mirror, white normal",
-            egui::FontId::proportional(11.0),
-            Color32::WHITE,
+        caption(
+            &painter,
+            rect,
+            "f_r·cos θo lobe (drag to orbit) — blue wi, pink mirror, white normal".into(),
         );
     }
 
@@ -1043,6 +1046,21 @@ impl ViewerApp {
     }
 }
 
+/// A view's caption in its top-left corner, wrapped inside the view (a single line was cut
+/// off at narrow widths); returns where it was drawn.
+fn caption(painter: &egui::Painter, rect: Rect, text: String) -> Rect {
+    let galley = painter.layout(
+        text,
+        egui::FontId::proportional(11.0),
+        Color32::WHITE,
+        (rect.width() - 8.0).max(40.0),
+    );
+    let at = rect.left_top() + vec2(4.0, 4.0);
+    let drawn = Rect::from_min_size(at, galley.size());
+    painter.galley(at, galley, Color32::WHITE);
+    drawn
+}
+
 fn row(ui: &mut egui::Ui, name: &str, value: String) {
     ui.label(name);
     ui.monospace(value);
@@ -1070,7 +1088,25 @@ impl eframe::App for ViewerApp {
         egui::Panel::left("controls")
             .default_size(310.0)
             .show(ui, |ui| {
-                egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
+                // The stats keep their own resizable strip at the bottom, each part scrolling
+                // with a solid, always visible bar (they used to run off the window's bottom
+                // edge with nothing to say there was more).
+                ui.spacing_mut().scroll = egui::style::ScrollStyle::solid();
+                let stats_height = (0.35 * ui.available_height()).clamp(120.0, 300.0);
+                egui::Panel::bottom("stats")
+                    .resizable(true)
+                    .default_size(stats_height)
+                    .show(ui, |ui| {
+                        egui::ScrollArea::vertical()
+                            .id_salt("stats")
+                            .scroll_bar_visibility(ScrollBarVisibility::AlwaysVisible)
+                            .auto_shrink([false, false])
+                            .show(ui, |ui| self.stats(ui));
+                    });
+                egui::ScrollArea::vertical()
+                    .id_salt("controls")
+                    .scroll_bar_visibility(ScrollBarVisibility::AlwaysVisible)
+                    .show(ui, |ui| self.controls(ui));
             });
         egui::CentralPanel::default().show(ui, |ui| {
             let avail = ui.available_size();

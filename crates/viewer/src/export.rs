@@ -1,9 +1,8 @@
 //! Exports: a PNG of each view (cropped from a full-window image) and the raw maps as EXR.
 
-use crate::worker::{FrMap, leaf_per_pixel};
+use crate::worker::{FrMap, TreeView};
 use brdf_validate::Histogram;
 use eframe::egui::{ColorImage, Rect};
-use quadtree_sampler::Quadtree;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -68,32 +67,25 @@ fn write_exr(
 }
 
 /// `maps.exr`: over the tree's square at the f_r map's resolution (row 0 at v = +1), the
-/// channels `fr` (Y(f_r), NaN outside the domain) and, with a tree, `leaf_probability`
-/// (v1/Σv1 of the leaf holding the pixel), `leaf_acceptance` (its P) and `leaf_depth`.
-pub fn write_maps(dir: &Path, fr: &FrMap, tree: Option<&Quadtree>) -> Result<PathBuf, String> {
+/// channels `fr` (Y(f_r), NaN outside the domain) and, with a tree, `leaf_probability` (the
+/// exact probability that selection picks the leaf holding the pixel), `leaf_acceptance` (its
+/// P) and `leaf_depth`.
+pub fn write_maps(dir: &Path, fr: &FrMap, tree: Option<&TreeView>) -> Result<PathBuf, String> {
     let res = fr.res;
     let mut channels = vec![("fr", fr.values.clone())];
     if let Some(tree) = tree {
-        let nodes = tree.nodes();
-        let volume = tree.volume().max(1e-300);
-        let leaves = leaf_per_pixel(tree, res);
+        let leaves = tree.leaf_per_pixel(res);
         channels.push((
             "leaf_probability",
-            leaves
-                .iter()
-                .map(|&l| (nodes[l].v1 / volume) as f32)
-                .collect(),
+            leaves.iter().map(|l| l.probability as f32).collect(),
         ));
         channels.push((
             "leaf_acceptance",
-            leaves
-                .iter()
-                .map(|&l| nodes[l].acceptance() as f32)
-                .collect(),
+            leaves.iter().map(|l| l.acceptance() as f32).collect(),
         ));
         channels.push((
             "leaf_depth",
-            leaves.iter().map(|&l| f32::from(nodes[l].depth)).collect(),
+            leaves.iter().map(|l| f32::from(l.depth)).collect(),
         ));
     }
     write_exr(&dir.join("maps.exr"), res, res, channels)

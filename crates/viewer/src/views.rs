@@ -1,11 +1,11 @@
 //! Drawing helpers of the 2D views: the f_r / leaf images of the disk view, the quadtree's
 //! leaf outlines, and the histogram cells of the validation grid.
 
-use crate::worker::{FrMap, leaf_per_pixel};
+use crate::worker::{FrMap, TreeView};
 use brdf_validate::CellGrid;
 use eframe::egui::{self, Color32, ColorImage, Mesh, Pos2, Rect, Shape, Stroke};
 use glam::Vec2;
-use quadtree_sampler::Quadtree;
+use quadtree_sampler::PackedLeaf;
 use quadtree_sampler::colormap::{rdbu, viridis};
 
 /// Background for points outside the map's domain (the orthographic corners).
@@ -74,18 +74,12 @@ pub fn fr_image(map: &FrMap, log: bool) -> ColorImage {
 /// the leaf holding its centre, coloured by `background` (which must not be `Fr`); pixels
 /// outside the map's domain keep the background colour.
 #[must_use]
-pub fn leaf_image(tree: &Quadtree, background: Background, fr: &FrMap) -> ColorImage {
-    let nodes = tree.nodes();
-    let volume: f64 = tree.volume().max(1e-300);
-    let density = |i: usize| {
-        let n = &nodes[i];
-        (n.v1 / volume) / f64::from(n.size * n.size)
-    };
-    let max_density = tree
-        .leaves()
-        .map(|(i, _)| density(i))
-        .fold(0.0f64, f64::max);
-    let pixels = leaf_per_pixel(tree, fr.res)
+pub fn leaf_image(tree: &TreeView, background: Background, fr: &FrMap) -> ColorImage {
+    // Selection probability per unit square area.
+    let density = |l: &PackedLeaf| l.probability / l.rect.area();
+    let max_density = tree.leaves().iter().map(density).fold(0.0f64, f64::max);
+    let pixels = tree
+        .leaf_per_pixel(fr.res)
         .into_iter()
         .zip(&fr.values)
         .map(|(leaf, v)| {
@@ -93,7 +87,7 @@ pub fn leaf_image(tree: &Quadtree, background: Background, fr: &FrMap) -> ColorI
                 return OUTSIDE;
             }
             let t = match background {
-                Background::LeafAcceptance => nodes[leaf].acceptance() as f32,
+                Background::LeafAcceptance => leaf.acceptance() as f32,
                 _ => normalise(density(leaf) as f32, max_density as f32, true),
             };
             rgb(viridis(t))
@@ -121,11 +115,12 @@ pub fn from_screen(rect: Rect, pos: Pos2) -> Vec2 {
 }
 
 /// The leaf outlines of `tree`, as line segments (one rectangle per leaf).
-pub fn leaf_outlines(tree: &Quadtree, rect: Rect, stroke: Stroke) -> Vec<Shape> {
+pub fn leaf_outlines(tree: &TreeView, rect: Rect, stroke: Stroke) -> Vec<Shape> {
     tree.leaves()
-        .map(|(_, n)| {
-            let a = to_screen(rect, Vec2::new(n.x, n.y + n.size));
-            let b = to_screen(rect, Vec2::new(n.x + n.size, n.y));
+        .iter()
+        .map(|l| {
+            let a = to_screen(rect, Vec2::new(l.rect.min.x as f32, l.rect.max.y as f32));
+            let b = to_screen(rect, Vec2::new(l.rect.max.x as f32, l.rect.min.y as f32));
             Shape::rect_stroke(
                 Rect::from_two_pos(a, b),
                 0.0,

@@ -189,6 +189,15 @@ fn snapshot_of_the_window() {
         .wgpu()
         .build_eframe(move |cc| ViewerApp::new(cc, resolved));
     settle(&mut h);
+    // The disk view's caption wraps inside the view instead of running past its edge.
+    let (disk, caption) = (
+        h.state().view_rect("disk").unwrap(),
+        h.state().disk_caption_rect(),
+    );
+    assert!(
+        caption.height() > 0.0 && disk.contains_rect(caption),
+        "{caption:?} outside {disk:?}"
+    );
     h.snapshot("viewer_phong");
 }
 
