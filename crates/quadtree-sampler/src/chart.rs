@@ -42,6 +42,29 @@ pub struct Rect {
     pub max: DVec2,
 }
 
+/// The child order of every quadtree in the crate, written once: child k of a node is the
+/// quadrant in column `k & 1` (0: the lower x half) and row `k >> 1` (0: the lower y half),
+/// so the order is (−,−), (+,−), (−,+), (+,+). Children are stored contiguously in it.
+#[inline]
+#[must_use]
+pub const fn child_index(column: usize, row: usize) -> usize {
+    column + 2 * row
+}
+
+/// The column (0: lower x, 1: upper x) of child `k` (see [`child_index`]).
+#[inline]
+#[must_use]
+pub const fn child_column(k: usize) -> usize {
+    k & 1
+}
+
+/// The row (0: lower y, 1: upper y) of child `k` (see [`child_index`]).
+#[inline]
+#[must_use]
+pub const fn child_row(k: usize) -> usize {
+    k >> 1
+}
+
 impl Rect {
     /// The square [x, x+s) × [y, y+s).
     #[must_use]
@@ -59,28 +82,33 @@ impl Rect {
         d.x * d.y
     }
 
-    /// The four quadrants, in the order (−,−), (+,−), (−,+), (+,+).
+    /// The four quadrants in the child order ([`child_column`], [`child_row`]):
+    /// (−,−), (+,−), (−,+), (+,+).
     #[must_use]
     pub fn quadrants(&self) -> [Self; 4] {
         let c = 0.5 * (self.min + self.max);
-        [
+        [0, 1, 2, 3].map(|k| {
+            let (x, y) = (child_column(k) == 1, child_row(k) == 1);
             Self {
-                min: self.min,
-                max: c,
-            },
-            Self {
-                min: DVec2::new(c.x, self.min.y),
-                max: DVec2::new(self.max.x, c.y),
-            },
-            Self {
-                min: DVec2::new(self.min.x, c.y),
-                max: DVec2::new(c.x, self.max.y),
-            },
-            Self {
-                min: c,
-                max: self.max,
-            },
-        ]
+                min: DVec2::new(
+                    if x { c.x } else { self.min.x },
+                    if y { c.y } else { self.min.y },
+                ),
+                max: DVec2::new(
+                    if x { self.max.x } else { c.x },
+                    if y { self.max.y } else { c.y },
+                ),
+            }
+        })
+    }
+
+    /// The child index of the quadrant holding `p` (points on a split line go to the upper
+    /// side).
+    #[inline]
+    #[must_use]
+    pub fn quadrant_of(&self, p: DVec2) -> usize {
+        let c = 0.5 * (self.min + self.max);
+        child_index(usize::from(p.x >= c.x), usize::from(p.y >= c.y))
     }
 
     /// Distance from the origin of the nearest and the farthest point.

@@ -26,7 +26,7 @@
 //! variation distance from the exact selection is about 2⁻³¹ per leaf, 10⁻⁶ for two thousand
 //! leaves, far under what any histogram test can see.
 
-use crate::chart::{Chart, Proposal, Rect};
+use crate::chart::{Chart, Proposal, Rect, child_column, child_row};
 use crate::tree::{Node, Quadtree, TreeStats, round_up_f32 as round_up};
 use alloc::vec::Vec;
 use brdf_core::DiskMap;
@@ -367,8 +367,7 @@ impl PackedTree {
             if n.is_leaf() {
                 return i;
             }
-            let mid = 0.5 * (rect.min + rect.max);
-            let k = usize::from(p.x >= mid.x) + 2 * usize::from(p.y >= mid.y);
+            let k = rect.quadrant_of(p);
             rect = rect.quadrants()[k];
             i = n.link as usize + k;
         }
@@ -427,8 +426,8 @@ impl PackedTree {
                 + usize::from(x >= n.data[1])
                 + usize::from(x >= n.data[2]);
             size *= 0.5;
-            min_x += size * (k & 1) as f64;
-            min_y += size * (k >> 1) as f64;
+            min_x += size * child_column(k) as f64;
+            min_y += size * child_row(k) as f64;
             depth += 1;
             i = n.link as usize + k;
         }

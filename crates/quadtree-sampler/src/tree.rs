@@ -19,7 +19,7 @@ pub const LEAF: u32 = 0;
 /// The square is [x, x+s) × [y, y+s) of the seed's domain; `v1` = ∫ f_r over it (square
 /// measure), `bound` (M) an upper bound of the proposal's height function over the proposal
 /// box, and P = v1 / (box area · M). Children are four contiguous nodes from `first_child`,
-/// in the order (−,−), (+,−), (−,+), (+,+).
+/// in the child order of [`crate::chart::child_index`]: (−,−), (+,−), (−,+), (+,+).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Node {
     /// Lower-left corner u.
@@ -923,10 +923,7 @@ impl Quadtree {
             if n.is_leaf() {
                 return i;
             }
-            let c = n.first_child as usize;
-            let half = f64::from(n.x) + 0.5 * f64::from(n.size);
-            let halfy = f64::from(n.y) + 0.5 * f64::from(n.size);
-            i = c + usize::from(p.x >= half) + 2 * usize::from(p.y >= halfy);
+            i = n.first_child as usize + n.rect().quadrant_of(p);
         }
     }
 

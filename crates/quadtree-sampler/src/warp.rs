@@ -10,6 +10,7 @@
 //! the leaf: the density is piecewise constant on the square, known exactly, and f·cos/pdf is
 //! an unbiased estimator weight. [`WarpSampler::invert`] undoes the map.
 
+use crate::chart::{child_column, child_index, child_row};
 use crate::config::BuildConfig;
 use crate::error::BuildError;
 use crate::sampler::{DirectionSampler, Sample, uniform_f64};
@@ -111,7 +112,7 @@ impl<B: Brdf> WarpSampler<B> {
             let (left, right) = (q[0] + q[2], q[1] + q[3]);
             let col = split(&mut u.x, left, right);
             let row = split(&mut u.y, q[col], q[col + 2]);
-            i = c + col + 2 * row;
+            i = c + child_index(col, row);
         }
         let n = &nodes[i];
         let p = DVec2::new(f64::from(n.x), f64::from(n.y)) + u * f64::from(n.size);
@@ -128,9 +129,8 @@ impl<B: Brdf> WarpSampler<B> {
         while !nodes[i].is_leaf() {
             let n = &nodes[i];
             let c = n.first_child as usize;
-            let h = 0.5 * f64::from(n.size);
-            let col = usize::from(p.x >= f64::from(n.x) + h);
-            let row = usize::from(p.y >= f64::from(n.y) + h);
+            let k = n.rect().quadrant_of(p);
+            let (col, row) = (child_column(k), child_row(k));
             let q = [self.q[c], self.q[c + 1], self.q[c + 2], self.q[c + 3]];
             let (left, right) = (q[0] + q[2], q[1] + q[3]);
             let (ox, sx) = if col == 0 {
@@ -145,7 +145,7 @@ impl<B: Brdf> WarpSampler<B> {
                 (b / (b + t), t / (b + t))
             };
             steps.push((ox, sx, oy, sy));
-            i = c + col + 2 * row;
+            i = c + k;
         }
         let n = &nodes[i];
         let mut u = (p - DVec2::new(f64::from(n.x), f64::from(n.y))) / f64::from(n.size);

@@ -29,6 +29,7 @@
 //! stored number, so the density a sample carries and the density of its point asked for
 //! later are the same value ([`WarpLeaf::contains`] says when a point is still in the leaf).
 
+use crate::chart::{child_column, child_index, child_row};
 use alloc::vec::Vec;
 use glam::DVec2;
 
@@ -190,7 +191,7 @@ impl WarpTable {
             let first = |p: u32| f64::from(p) * ONE_OVER_2_32;
             let pc = [first(col), 1.0 - first(col)];
             for k in 0..4 {
-                let (x, y) = (k & 1, k >> 1);
+                let (x, y) = (child_column(k), child_row(k));
                 let pr = first(rows[x]);
                 let py = if y == 0 { pr } else { 1.0 - pr };
                 // A share of 0 gets an empty interval (or one of 2⁻³² of its parent's, where
@@ -255,7 +256,7 @@ impl WarpTable {
             ix = 2 * ix + col as u32;
             iy = 2 * iy + row as u32;
             depth += 1;
-            i = n.link as usize + col as usize + 2 * row as usize;
+            i = n.link as usize + child_index(col as usize, row as usize);
         }
     }
 
@@ -290,7 +291,7 @@ impl WarpTable {
             bit -= 1;
             let col = (kx >> bit) & 1;
             let row = (ky >> bit) & 1;
-            i = n.link as usize + col as usize + 2 * row as usize;
+            i = n.link as usize + child_index(col as usize, row as usize);
         }
     }
 }
