@@ -65,13 +65,17 @@ extern crate std;
 
 mod bake_file;
 mod baked;
+mod bound;
 pub mod chart;
 pub mod colormap;
 mod config;
 mod encoder;
 mod error;
+mod evaluate;
 mod factory;
+pub mod integrate;
 mod packed;
+pub mod proposal;
 mod sampler;
 mod table;
 mod tree;

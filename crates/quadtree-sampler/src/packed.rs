@@ -26,8 +26,10 @@
 //! variation distance from the exact selection is about 2⁻³¹ per leaf, 10⁻⁶ for two thousand
 //! leaves, far under what any histogram test can see.
 
-use crate::chart::{Chart, Proposal, Rect, child_column, child_row};
-use crate::tree::{Node, Quadtree, TreeStats, round_up_f32 as round_up};
+use crate::bound::round_up_f32 as round_up;
+use crate::chart::{Chart, Rect, child_column, child_row};
+use crate::proposal::Proposal;
+use crate::tree::{Node, Quadtree, TreeStats};
 use alloc::vec::Vec;
 use brdf_core::DiskMap;
 

@@ -1,0 +1,313 @@
+//! The bound search: M for a node's proposal (SPEC §3) — the largest height f·Jacobian found
+//! on a dense grid, at the model's peak hints, at the integration's largest value and by
+//! compass searches climbing from the best of them, times the safety factor; and the rim
+//! probe that tells whether f stays bounded at the disk's rim inside a node.
+
+use crate::chart::{Chart, Rect};
+use crate::evaluate::Context;
+use crate::integrate::{Peak, join};
+use crate::proposal::Proposal;
+use alloc::vec::Vec;
+use brdf_core::{Brdf, DiskMap, math as m};
+use glam::{DVec2, DVec3};
+
+/// Orthographic: azimuths of points on the unit circle inside `rect`: nine per arc, ends
+/// included (nudged inside). The arcs' ends are where the circle crosses the rectangle's edges.
+fn rim_arc_points(rect: &Rect) -> Vec<f64> {
+    use core::f64::consts::{PI, TAU};
+    let mut cuts: Vec<f64> = Vec::with_capacity(10);
+    for x in [rect.min.x, rect.max.x] {
+        if x.abs() <= 1.0 {
+            let a = m::acos(x);
+            cuts.extend([a, TAU - a]);
+        }
+    }
+    for y in [rect.min.y, rect.max.y] {
+        if y.abs() <= 1.0 {
+            let a = m::asin(y);
+            // a ∈ [−π/2, π/2] and π − a ∈ [π/2, 3π/2]: only a may need wrapping into [0, 2π).
+            cuts.extend([if a < 0.0 { a + TAU } else { a }, PI - a]);
+        }
+    }
+    cuts.sort_unstable_by(f64::total_cmp);
+    let inside = |phi: f64| rect.contains(DVec2::new(m::cos(phi), m::sin(phi)));
+    let mut points = Vec::new();
+    if cuts.is_empty() {
+        if inside(0.0) {
+            points.extend((0..64).map(|k| TAU * k as f64 / 64.0));
+        }
+        return points;
+    }
+    for k in 0..cuts.len() {
+        let a = cuts[k];
+        let b = if k + 1 < cuts.len() {
+            cuts[k + 1]
+        } else {
+            cuts[0] + TAU
+        };
+        if b - a < 1e-15 || !inside(0.5 * (a + b)) {
+            continue;
+        }
+        let pad = (b - a) * 1e-9;
+        points.extend((0..9).map(|j| a + pad + (b - a - 2.0 * pad) * j as f64 / 8.0));
+    }
+    points
+}
+
+/// Concentric: the rim is the square's edge. Points (cos φ, sin φ) of the rim directions of the
+/// node's stretches of it: nine per edge it lies on, ends included (nudged inside).
+fn edge_rim_points(rect: &Rect) -> Vec<(f64, f64)> {
+    let mut points = Vec::new();
+    let mut stretch = |p0: DVec2, p1: DVec2| {
+        let pad = (p1 - p0) * 1e-9;
+        for j in 0..9 {
+            let p = p0 + pad + (p1 - p0 - 2.0 * pad) * (j as f64 / 8.0);
+            let w = DiskMap::Concentric
+                .square_to_direction_f64(p)
+                .unwrap_or(DVec3::Z);
+            let r = m::sqrt(w.x * w.x + w.y * w.y);
+            if r > 0.0 {
+                points.push((w.x / r, w.y / r));
+            }
+        }
+    };
+    let (lo, hi) = (rect.min, rect.max);
+    if lo.x <= -1.0 {
+        stretch(DVec2::new(-1.0, lo.y), DVec2::new(-1.0, hi.y));
+    }
+    if hi.x >= 1.0 {
+        stretch(DVec2::new(1.0, lo.y), DVec2::new(1.0, hi.y));
+    }
+    if lo.y <= -1.0 {
+        stretch(DVec2::new(lo.x, -1.0), DVec2::new(hi.x, -1.0));
+    }
+    if hi.y >= 1.0 {
+        stretch(DVec2::new(lo.x, 1.0), DVec2::new(hi.x, 1.0));
+    }
+    points
+}
+
+/// The node's rim points (cos φ, sin φ) under `map` ([`rim_arc_points`], [`edge_rim_points`]).
+fn rim_points(map: DiskMap, rect: &Rect) -> Vec<(f64, f64)> {
+    match map {
+        DiskMap::Orthographic => rim_arc_points(rect)
+            .into_iter()
+            .map(|phi| (m::cos(phi), m::sin(phi)))
+            .collect(),
+        DiskMap::Concentric => edge_rim_points(rect),
+    }
+}
+
+/// `m` as an f32 no smaller than it (an upper bound stays one).
+pub(crate) fn round_up_f32(m: f64) -> f32 {
+    let b = m as f32;
+    if f64::from(b) < m { b.next_up() } else { b }
+}
+
+/// What [`Context::rim_probe`] found: f's behaviour approaching the rim inside a node.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum RimProbe {
+    /// f grows without bound toward the rim (1/√z or faster).
+    Unbounded,
+    /// f stays bounded; the largest value seen near the rim.
+    Bounded(f64),
+}
+
+impl<B: Brdf + ?Sized> Context<'_, B> {
+    /// The proposal's height function h = f·Jacobian at chart point q (0 outside the node).
+    #[inline]
+    fn height(&self, prop: &Proposal, rect: &Rect, q: DVec2) -> f64 {
+        prop.point(self.config.map, rect, q)
+            .map_or(0.0, |c| self.f(c.w) * c.jacobian)
+    }
+
+    /// M for `prop` on a node of integral `v1` whose integration met `peak`: the bound
+    /// search ([`Self::bound`]) from the integration's largest height, no less than f's limit
+    /// at the rim where one is given (times the safety factor), rounded up to f32.
+    pub(crate) fn proposal_bound(
+        &self,
+        prop: &Proposal,
+        rect: &Rect,
+        peak: &Peak,
+        v1: f64,
+        rim_limit: Option<f64>,
+    ) -> f64 {
+        // A bound below the node's mean height is certainly wrong (a peak between the points
+        // looked at): take four times the mean instead, so that P = ¼ splits the node.
+        let mean = if prop.area() > 0.0 {
+            v1 / prop.area()
+        } else {
+            0.0
+        };
+        // The integration refined itself into every sharp feature of the node: its largest
+        // value (in the proposal's chart) is a bound candidate and a search seed.
+        let seed = match prop.chart {
+            Chart::Square => (peak.f, peak.p),
+            Chart::Angle | Chart::Sine => (peak.fj, peak.q),
+            Chart::AngleY => (peak.fjy, peak.qy),
+        };
+        let mut found = self.bound(prop, rect, seed);
+        if let Some(limit) = rim_limit {
+            found = found.max(limit * self.config.bound_safety);
+        }
+        // (The comparison allows for rounding: a constant f integrates to its value times
+        // the area only up to the rule's last bits, and must not be taken for a missed peak.)
+        let bound = if found >= mean * self.config.bound_safety * (1.0 - 1e-9) {
+            found
+        } else {
+            4.0 * mean
+        };
+        // The sampling layout keeps M in f32: round it up here, so that the tree's E[T] (and
+        // every decision taken on it) is the one sampling will see.
+        f64::from(round_up_f32(bound))
+    }
+
+    /// M: the largest h found on a dense grid (edges and corners included), at the peak hints
+    /// inside the node, and by a compass search from the best of those, times the safety
+    /// factor (SPEC §3).
+    fn bound(&self, prop: &Proposal, rect: &Rect, seed: (f64, DVec2)) -> f64 {
+        let map = self.config.map;
+        let g = usize::from(self.config.bound_grid);
+        let (lo, hi) = (prop.lo, prop.hi);
+        let span = hi - lo;
+        let mut best = [(f64::NEG_INFINITY, lo); 3];
+        let mut consider = |h: f64, q: DVec2| {
+            if h > best[2].0 {
+                best[2] = (h, q);
+                best.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+            }
+        };
+        // The grid follows the node's own region: in the angle chart, t runs between the
+        // node's edges at each a (a sliver of the box may hold all of the node).
+        for i in 0..=g {
+            let a = lo.x + span.x * i as f64 / g as f64;
+            let (t0, t1) = match prop.chart {
+                Chart::Angle | Chart::AngleY => {
+                    let ca = m::cos(a);
+                    if ca <= 0.0 {
+                        continue;
+                    }
+                    let lim = |y: f64| m::asin((y / ca).clamp(-1.0, 1.0));
+                    let (ylo, yhi) = if prop.chart == Chart::Angle {
+                        (rect.min.y, rect.max.y)
+                    } else {
+                        (rect.min.x, rect.max.x)
+                    };
+                    (lim(ylo), lim(yhi).min(hi.y))
+                }
+                Chart::Square | Chart::Sine => (lo.y, hi.y),
+            };
+            for j in 0..=g {
+                // Pull the upper ends in by a hair: the node's upper edges are open.
+                let t = t0 + (t1 - t0) * (j as f64 / g as f64).min(1.0 - 1e-12);
+                let q = DVec2::new(a, t);
+                consider(self.height(prop, rect, q), q);
+            }
+        }
+        consider(seed.0, seed.1.clamp(lo, hi));
+        // Peak hints: inside the node, or projected onto its closest point (a lobe peaked just
+        // outside is largest on the near edge). A hint inside the node is also climbed from
+        // below, whatever its rank: in a chart whose Jacobian vanishes at the rim, a lobe
+        // peaked on the rim has a small height there and its maximum just inside, which a
+        // climb from the grid's best points (on the diffuse plateau) never reaches.
+        // (`PeakHints` holds at most four.)
+        let mut inside: [Option<(f64, DVec2)>; 4] = [None; 4];
+        for (k, w) in self.hints.iter().enumerate() {
+            let p = match map {
+                DiskMap::Orthographic => DVec2::new(w.x, w.y),
+                DiskMap::Concentric => {
+                    brdf_core::maps::disk_to_square_concentric(w.truncate().as_vec2()).as_dvec2()
+                }
+            };
+            let pc = p.clamp(rect.min, rect.max - (rect.max - rect.min) * 1e-9);
+            let Some(wc) = map.square_to_direction_f64(pc) else {
+                continue;
+            };
+            let q = prop.coordinates(map, wc).clamp(lo, hi);
+            let h = self.height(prop, rect, q);
+            consider(h, q);
+            if pc == p && k < inside.len() {
+                inside[k] = Some((h, q));
+            }
+        }
+        // The three searches are independent: run them side by side (the largest of three
+        // is the same in any order).
+        let climb = |(h0, q0): (f64, DVec2)| {
+            if h0 > 0.0 {
+                self.compass_search(prop, rect, q0, h0, span / g as f64)
+            } else {
+                0.0
+            }
+        };
+        let par = self.par_levels > 0;
+        let (h0, (h1, h2)) = join(
+            par,
+            || climb(best[0]),
+            || join(par, || climb(best[1]), || climb(best[2])),
+        );
+        let from_hints = inside
+            .iter()
+            .flatten()
+            .map(|&x| climb(x))
+            .fold(0.0, f64::max);
+        best[0].0.max(0.0).max(h0).max(h1).max(h2).max(from_hints) * self.config.bound_safety
+    }
+
+    /// Looks at f along the node's own stretch of the rim ([`rim_points`]: its arcs of the
+    /// circle, orthographic; its parts of the square's edge, concentric), at heights z = 1e-5
+    /// and 1e-9 above it. If f still grows between them (Ward's 1/√z, even under a diffuse
+    /// term) it is treated as unbounded; otherwise the largest value seen is its limit at the
+    /// rim.
+    pub(crate) fn rim_probe(&self, rect: &Rect) -> RimProbe {
+        let mut limit: f64 = 0.0;
+        for (c, s) in rim_points(self.config.map, rect) {
+            let at = |z: f64| {
+                let r = m::sqrt((1.0 - z) * (1.0 + z));
+                self.f(DVec3::new(r * c, r * s, z))
+            };
+            // z = 1e-9 is below the smallest height a sample can have (f64 positions give
+            // z ≳ 1e-8); any growth toward it means f is still climbing there: unbounded.
+            let (near, nearer) = (at(1e-5), at(1e-9));
+            if nearer > near * (1.0 + 1e-3) && nearer > 0.0 {
+                return RimProbe::Unbounded;
+            }
+            limit = limit.max(near).max(nearer);
+        }
+        RimProbe::Bounded(limit)
+    }
+
+    /// Hill-climbs h from q0 with axis steps, halving them when no step improves.
+    fn compass_search(
+        &self,
+        prop: &Proposal,
+        rect: &Rect,
+        q0: DVec2,
+        h0: f64,
+        step0: DVec2,
+    ) -> f64 {
+        let (mut q, mut h, mut step) = (q0, h0, step0);
+        let stop = step0 * 1e-4;
+        let mut evals = 0;
+        while (step.x > stop.x || step.y > stop.y) && evals < 400 {
+            let mut moved = false;
+            for d in [
+                DVec2::new(step.x, 0.0),
+                DVec2::new(-step.x, 0.0),
+                DVec2::new(0.0, step.y),
+                DVec2::new(0.0, -step.y),
+            ] {
+                let c = (q + d).clamp(prop.lo, prop.hi);
+                let hc = self.height(prop, rect, c);
+                evals += 1;
+                if hc > h {
+                    (q, h, moved) = (c, hc, true);
+                    break;
+                }
+            }
+            if !moved {
+                step *= 0.5;
+            }
+        }
+        h
+    }
+}

@@ -1,0 +1,245 @@
+//! Node evaluation, the build's inner loop: each node's integral v1 by adaptive integration
+//! continued from the cells its parent left ([`crate::integrate`]), its proposal and bound M
+//! ([`crate::bound`]), and the build's budgets (evaluations, remembered cells). Pure
+//! functions of a node's square and inherited cells, so levels evaluate in parallel.
+
+use crate::bound::RimProbe;
+use crate::chart::{Chart, Rect};
+use crate::config::{BuildConfig, IntegrationRule};
+use crate::integrate::{Cell, Peak, UnitRule, refine_cells};
+use crate::proposal::Proposal;
+use alloc::vec::Vec;
+use brdf_core::{Brdf, DiskMap};
+use core::sync::atomic::{AtomicU64, AtomicUsize, Ordering as AtomicOrdering};
+use glam::{DVec3, Vec3};
+
+/// What a node's evaluation found.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Evaluation {
+    pub(crate) v1: f64,
+    pub(crate) bound: f64,
+    pub(crate) proposal: Proposal,
+}
+
+/// Integration cells the build may remember for the nodes still to split (88 bytes each:
+/// 88 MiB). Past it, a new node keeps only the cells of its children's first rule
+/// application, and past twice it none: the memoised cells only save work (a forgotten one
+/// is recomputed bit for bit), so the tree does not depend on this, and the build's memory
+/// stays below about 2 × 88 MiB plus 80 bytes per node.
+pub(crate) const CELL_CACHE_LIMIT: usize = 1 << 20;
+
+/// Parents split per batch of the breadth-first pass (between batches the evaluation budget
+/// is checked).
+pub(crate) const SPLIT_CHUNK: usize = 256;
+
+/// Everything a node evaluation needs: pure, shared by the worker threads.
+pub(crate) struct Context<'a, B: Brdf + ?Sized> {
+    pub(crate) brdf: &'a B,
+    pub(crate) wi: Vec3,
+    pub(crate) config: BuildConfig,
+    pub(crate) rule: UnitRule,
+    pub(crate) hints: Vec<DVec3>,
+    /// Absolute floor of every node's integration tolerance: the relative tolerance times an
+    /// estimate of the total volume (a node's error below it cannot be seen by any test).
+    pub(crate) tol_floor: f64,
+    /// Levels of each node's adaptive integration whose quadrants run in parallel.
+    pub(crate) par_levels: u32,
+    /// Integration cells remembered for the leaves (see [`CELL_CACHE_LIMIT`]).
+    pub(crate) cached: AtomicUsize,
+    /// f_r evaluations spent so far (see [`BuildConfig::evaluation_budget`]).
+    pub(crate) spent: AtomicU64,
+    /// Evaluations per rule application (n² points; twice that where the angle chart
+    /// splits a node into pieces, counted as its mean).
+    pub(crate) per_application: u64,
+}
+
+impl<'a, B: Brdf + ?Sized> Context<'a, B> {
+    /// The context, and the root's integration cells (the estimate of the total volume is an
+    /// adaptive integration of the root, which the root's own evaluation then continues).
+    pub(crate) fn new(brdf: &'a B, wi: Vec3, config: BuildConfig) -> (Self, Cell) {
+        let rule = match config.rule {
+            IntegrationRule::Midpoint { n } => UnitRule::midpoint(usize::from(n)),
+            IntegrationRule::GaussLegendre { n } => UnitRule::new(usize::from(n)),
+        };
+        let hints = brdf
+            .peak_hints(brdf_core::geometry::lift_incident(wi))
+            .as_slice()
+            .iter()
+            .map(|h| h.as_dvec3().normalize())
+            .collect();
+        let mut ctx = Self {
+            brdf,
+            wi,
+            config,
+            rule,
+            hints,
+            tol_floor: 0.0,
+            // Every level: the work of a sharp lobe sits in one quadrant after another, so a
+            // fixed number of top levels would leave one thread with all of it. A join that is
+            // not stolen costs far less than the 4 × 36 evaluations of the cell it splits.
+            par_levels: if cfg!(feature = "rayon") && config.parallel {
+                u32::MAX
+            } else {
+                0
+            },
+            cached: AtomicUsize::new(0),
+            spent: AtomicU64::new(0),
+            per_application: {
+                let n = match config.rule {
+                    IntegrationRule::Midpoint { n } | IntegrationRule::GaussLegendre { n } => {
+                        u64::from(n)
+                    }
+                };
+                2 * n * n
+            },
+        };
+        let root = Rect::square(-1.0, -1.0, 2.0);
+        let f = |w: DVec3| ctx.f(w);
+        let mut cell = Cell::once(config.map, &root, &ctx.rule, &f);
+        let tol = 1e-3 * cell.value.abs();
+        let estimate = refine_cells(
+            config.map,
+            &root,
+            &mut cell,
+            &ctx.rule,
+            tol,
+            6,
+            &f,
+            &mut Peak::default(),
+            ctx.par_levels,
+        );
+        ctx.tol_floor = config.integration_tolerance * 1e-2 * estimate.abs();
+        ctx.spend((1 + cell.applications(tol, 6)) * ctx.per_application);
+        (ctx, cell)
+    }
+
+    /// f_r's luminance at a local direction (the density the tree follows).
+    #[inline]
+    pub(crate) fn f(&self, w: DVec3) -> f64 {
+        f64::from(self.brdf.eval_luminance(self.wi, w.as_vec3()))
+    }
+
+    /// Evaluates the node `rect`, continuing from the integration cells `cells` its parent
+    /// left for it; returns its own cells for its children.
+    pub(crate) fn evaluate(&self, rect: &Rect, cells: Option<Cell>) -> (Evaluation, Option<Cell>) {
+        let map = self.config.map;
+        let square = Proposal::in_chart(rect, Chart::Square);
+        if map == DiskMap::Orthographic && rect.radius_range().0 >= 1.0 {
+            let e = Evaluation {
+                v1: 0.0,
+                bound: 0.0,
+                proposal: square,
+            };
+            return (e, None);
+        }
+        let chart = Proposal::for_node(map, rect);
+        let f = |w: DVec3| self.f(w);
+        // One application of the rule sets the tolerance and is the refinement's start (the
+        // node's points are integrated once, not twice; and not at all when the parent's
+        // integration already applied the rule here).
+        let mut cell = cells.unwrap_or_else(|| Cell::once(map, rect, &self.rule, &f));
+        let mut peak = cell.peak;
+        let tol = (self.config.integration_tolerance * cell.value.abs()).max(self.tol_floor);
+        let v1 = refine_cells(
+            map,
+            rect,
+            &mut cell,
+            &self.rule,
+            tol,
+            u32::from(self.config.integration_depth),
+            &f,
+            &mut peak,
+            self.par_levels,
+        )
+        .max(0.0);
+        // The node's integration as if nothing were memoised (so the count, and the budget's
+        // verdict, do not depend on the cache), and each bound search's grid, hints and three
+        // compass searches of at most 400 steps.
+        let g = u64::from(self.config.bound_grid) + 1;
+        let depth = u32::from(self.config.integration_depth);
+        let search = g * g + 1200;
+        self.spend((1 + cell.applications(tol, depth)) * self.per_application + search);
+        let chart_bound = self.proposal_bound(&chart, rect, &peak, v1, None);
+        // A rim node is sampled in the proposal with the smaller box it can bound. The angle
+        // and sine charts bound f·Jacobian even where f is unbounded at the rim (Ward's 1/√z),
+        // but their Jacobians vanish there, so their boxes waste about half of a rim node
+        // whatever f does; where f stays bounded the seed's square is usually tighter (its only
+        // waste, outside the disk, orthographic; none, concentric). Not always: where f climbs
+        // steeply just short of the rim (Oren–Nayar at grazing incidence) the vanishing
+        // Jacobian is what flattens the height. So both are bounded and the smaller kept (ties
+        // to the square).
+        // (Off the rim the chart proposal is the square itself: nothing to compare.)
+        let rim = (chart.chart != Chart::Square).then(|| self.rim_probe(rect));
+        let (proposal, bound) = match rim {
+            None | Some(RimProbe::Unbounded) => (chart, chart_bound),
+            Some(RimProbe::Bounded(limit)) => {
+                self.spend(search);
+                let square_bound = self.proposal_bound(&square, rect, &peak, v1, Some(limit));
+                if square.area() * square_bound <= chart.area() * chart_bound {
+                    (square, square_bound)
+                } else {
+                    (chart, chart_bound)
+                }
+            }
+        };
+        let e = Evaluation {
+            v1,
+            bound,
+            proposal,
+        };
+        (e, Some(cell))
+    }
+
+    /// Evaluates nodes (in parallel when enabled), each from its inherited cells.
+    pub(crate) fn evaluate_all(
+        &self,
+        nodes: Vec<(Rect, Option<Cell>)>,
+    ) -> Vec<(Evaluation, Option<Cell>)> {
+        let one = |(r, c): (Rect, Option<Cell>)| {
+            let (e, cells) = self.evaluate(&r, c);
+            (e, self.remember(cells))
+        };
+        #[cfg(feature = "rayon")]
+        if self.config.parallel {
+            use rayon::prelude::*;
+            return nodes.into_par_iter().map(one).collect();
+        }
+        nodes.into_iter().map(one).collect()
+    }
+
+    /// A new leaf's cells as the cache budget allows ([`CELL_CACHE_LIMIT`]), counted in.
+    pub(crate) fn remember(&self, cells: Option<Cell>) -> Option<Cell> {
+        let mut cell = cells?;
+        let held = self.cached.load(AtomicOrdering::Relaxed);
+        if held > 2 * CELL_CACHE_LIMIT {
+            return None;
+        }
+        if held > CELL_CACHE_LIMIT {
+            cell.prune(1);
+        }
+        self.cached.fetch_add(cell.count(), AtomicOrdering::Relaxed);
+        Some(cell)
+    }
+
+    /// Counts `n` evaluations spent.
+    pub(crate) fn spend(&self, n: u64) {
+        self.spent.fetch_add(n, AtomicOrdering::Relaxed);
+    }
+
+    /// Whether the evaluation budget is spent with `nodes` built (checked between batches
+    /// of nodes, whose work does not depend on the order the threads did it in).
+    pub(crate) fn overspent(&self, nodes: usize) -> bool {
+        let allowed = self
+            .config
+            .evaluation_budget
+            .saturating_add((nodes as u64).saturating_mul(crate::config::EVALUATIONS_PER_NODE));
+        self.spent.load(AtomicOrdering::Relaxed) > allowed
+    }
+
+    /// Counts out a leaf's cells as it hands them to its children.
+    pub(crate) fn forget(&self, cells: &Option<Cell>) {
+        if let Some(c) = cells {
+            self.cached.fetch_sub(c.count(), AtomicOrdering::Relaxed);
+        }
+    }
+}

@@ -1,0 +1,596 @@
+//! The integration of f_r over a node in its chart (see [`crate::chart`]): a tensor
+//! Gauss–Legendre rule in angle coordinates (orthographic) or on the triangles of sine
+//! coordinates (concentric), the adaptive rule that refines it, the remembered cells
+//! (`Cell`) a child continues from, and the peaks ([`Peak`]) every integration reports
+//! to seed the bound search.
+
+use crate::chart::{ChartPoint, Rect, angle_point, angle_y_coordinates, sine_point};
+use brdf_core::DiskMap;
+use brdf_core::math as m;
+use brdf_core::quadrature::GaussLegendre;
+use glam::{DVec2, DVec3};
+
+/// A Gauss–Legendre rule on [0, 1] (nodes, weights), shared by all integrations of a build.
+#[derive(Clone, Debug)]
+pub struct UnitRule {
+    nodes: alloc::vec::Vec<f64>,
+    weights: alloc::vec::Vec<f64>,
+}
+
+impl UnitRule {
+    /// The n-point rule on [0, 1].
+    #[must_use]
+    pub fn new(n: usize) -> Self {
+        let gl = GaussLegendre::new(n);
+        Self {
+            nodes: gl.nodes().iter().map(|x| 0.5 * (x + 1.0)).collect(),
+            weights: gl.weights().iter().map(|w| 0.5 * w).collect(),
+        }
+    }
+
+    /// The n-point midpoint rule on [0, 1] (the seed's uniform grid).
+    #[must_use]
+    pub fn midpoint(n: usize) -> Self {
+        let n = n.max(1);
+        Self {
+            nodes: (0..n).map(|i| (i as f64 + 0.5) / n as f64).collect(),
+            weights: alloc::vec![1.0 / n as f64; n],
+        }
+    }
+
+    /// (x, w) on [a, b].
+    #[inline]
+    pub fn on(&self, a: f64, b: f64) -> impl Iterator<Item = (f64, f64)> + '_ {
+        let h = b - a;
+        self.nodes
+            .iter()
+            .zip(&self.weights)
+            .map(move |(&x, &w)| (a + h * x, h * w))
+    }
+}
+
+/// The largest integrand values an integration met, for bounding (every point it evaluates
+/// lies in the node): f itself (with its square point), f × the chart's Jacobian (with its
+/// chart coordinates: (a, t) orthographic, (α, β) concentric) and, orthographic only, f × the
+/// transposed angle chart's Jacobian (with its (b, s)): each is the seed of the bound search
+/// in that proposal, whose height can peak elsewhere than the others' (f·Jacobian may have a
+/// maximum between a lobe on the rim and a diffuse plateau inside).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Peak {
+    /// Largest f seen.
+    pub f: f64,
+    /// Where (square coordinates).
+    pub p: DVec2,
+    /// Largest f·Jacobian seen.
+    pub fj: f64,
+    /// Where (chart coordinates).
+    pub q: DVec2,
+    /// Largest f × the transposed angle chart's Jacobian seen (orthographic; 0 concentric).
+    pub fjy: f64,
+    /// Where (transposed angle coordinates (b, s)).
+    pub qy: DVec2,
+}
+
+impl Peak {
+    /// Takes `other`'s maxima where they are larger (strictly: on ties the earlier point
+    /// stays). Merging the peaks of consecutive runs of points in order gives exactly the
+    /// peak of seeing all the points in that order.
+    #[inline]
+    pub fn merge(&mut self, other: &Self) {
+        if other.f > self.f {
+            self.f = other.f;
+            self.p = other.p;
+        }
+        if other.fj > self.fj {
+            self.fj = other.fj;
+            self.q = other.q;
+        }
+        if other.fjy > self.fjy {
+            self.fjy = other.fjy;
+            self.qy = other.qy;
+        }
+    }
+
+    #[inline]
+    fn see(&mut self, f: f64, c: &ChartPoint, q: DVec2) {
+        if f > self.f {
+            self.f = f;
+            self.p = c.p;
+        }
+        let fj = f * c.jacobian;
+        if fj > self.fj {
+            self.fj = fj;
+            self.q = q;
+        }
+    }
+
+    /// [`Self::see`] for a point of the orthographic angle chart, also in the transposed
+    /// chart: its Jacobian cos²b·cos s is √(1 − y²)·z at the same direction.
+    #[inline]
+    fn see_angle(&mut self, f: f64, c: &ChartPoint, q: DVec2) {
+        self.see(f, c, q);
+        let fjy = f * m::sqrt((1.0 - c.w.y * c.w.y).max(0.0)) * c.w.z;
+        if fjy > self.fjy {
+            self.fjy = fjy;
+            self.qy = angle_y_coordinates(c.w);
+        }
+    }
+}
+
+/// ∫ f over `rect` ∩ disk with f given per direction (the square measure dx dy), by the map's
+/// chart rule (one application, no adaptivity). `f` returns f_r's luminance.
+pub fn integrate_once(
+    map: DiskMap,
+    rect: &Rect,
+    rule: &UnitRule,
+    f: &impl Fn(DVec3) -> f64,
+) -> f64 {
+    integrate_once_peak(map, rect, rule, f, &mut Peak::default())
+}
+
+/// [`integrate_once`], also recording the largest values met in `peak`.
+pub fn integrate_once_peak(
+    map: DiskMap,
+    rect: &Rect,
+    rule: &UnitRule,
+    f: &impl Fn(DVec3) -> f64,
+    peak: &mut Peak,
+) -> f64 {
+    match map {
+        DiskMap::Orthographic => integrate_angle(rect, rule, f, peak),
+        DiskMap::Concentric => integrate_sine(rect, rule, f, peak),
+    }
+}
+
+fn integrate_angle(
+    rect: &Rect,
+    rule: &UnitRule,
+    f: &impl Fn(DVec3) -> f64,
+    peak: &mut Peak,
+) -> f64 {
+    let (xa, xb) = (rect.min.x.clamp(-1.0, 1.0), rect.max.x.clamp(-1.0, 1.0));
+    if xa >= xb {
+        return 0.0;
+    }
+    let (a0, a1) = (m::asin(xa), m::asin(xb));
+    // Breakpoints: where the rim crosses the node's horizontal edges, |y| = cos a. There the
+    // inner limit asin(y / cos a) has a square-root singularity; a piece ending at one is
+    // remapped so that a − a_end ∝ u² (smoothstep at two such ends, u² at one), which removes
+    // it. Node edges (x = const) are not singular and keep the plain rule.
+    let mut cuts = [(a0, false); 6];
+    let mut n = 1;
+    for y in [rect.min.y, rect.max.y] {
+        if y.abs() < 1.0 {
+            let c = m::acos(y.abs());
+            for a in [-c, c] {
+                if a > a0 && a < a1 {
+                    cuts[n] = (a, true);
+                    n += 1;
+                }
+            }
+        }
+    }
+    cuts[n] = (a1, false);
+    let cuts = &mut cuts[..=n];
+    cuts.sort_unstable_by(|x, y| x.0.total_cmp(&y.0));
+    let mut total = 0.0;
+    for piece in cuts.windows(2) {
+        let ((p0, s0), (p1, s1)) = (piece[0], piece[1]);
+        for (u, wu) in rule.on(0.0, 1.0) {
+            let (a, wa) = remap(p0, p1, s0, s1, u, wu);
+            let ca = m::cos(a);
+            let (ylo, yhi) = (rect.min.y.max(-ca), rect.max.y.min(ca));
+            if ylo >= yhi || ca <= 0.0 {
+                continue;
+            }
+            let (t0, t1) = (
+                m::asin((ylo / ca).clamp(-1.0, 1.0)),
+                m::asin((yhi / ca).clamp(-1.0, 1.0)),
+            );
+            // A limit on the rim (t = ±π/2) is where f may grow like z^{-1/2}: remap it too.
+            let (r0, r1) = (ylo <= -ca, yhi >= ca);
+            let mut inner = 0.0;
+            for (u, wu) in rule.on(0.0, 1.0) {
+                let (t, wt) = remap(t0, t1, r0, r1, u, wu);
+                let q = angle_point(a, t);
+                let fv = f(q.w);
+                peak.see_angle(fv, &q, DVec2::new(a, t));
+                inner += wt * fv * q.jacobian;
+            }
+            total += wa * inner;
+        }
+    }
+    total
+}
+
+/// Maps u ∈ [0, 1] (weight wu) onto [x0, x1] so that x − end ∝ u² at each end flagged
+/// singular (smoothstep for two, a parabola for one): square-root end singularities become
+/// smooth for Gauss–Legendre. Returns (x, weight).
+#[inline]
+fn remap(x0: f64, x1: f64, s0: bool, s1: bool, u: f64, wu: f64) -> (f64, f64) {
+    let d = x1 - x0;
+    match (s0, s1) {
+        (false, false) => (x0 + d * u, wu * d),
+        (true, false) => (x0 + d * u * u, wu * d * 2.0 * u),
+        (false, true) => (x1 - d * (1.0 - u) * (1.0 - u), wu * d * 2.0 * (1.0 - u)),
+        (true, true) => (
+            x0 + d * u * u * (3.0 - 2.0 * u),
+            wu * d * 6.0 * u * (1.0 - u),
+        ),
+    }
+}
+
+fn integrate_sine(rect: &Rect, rule: &UnitRule, f: &impl Fn(DVec3) -> f64, peak: &mut Peak) -> f64 {
+    let s = |x: f64| m::asin(x.clamp(-1.0, 1.0));
+    let (al0, al1, be0, be1) = (s(rect.min.x), s(rect.max.x), s(rect.min.y), s(rect.max.y));
+    let peak = core::cell::RefCell::new(peak);
+    let h = |al: f64, be: f64| {
+        let q = sine_point(al, be);
+        let fv = f(q.w);
+        peak.borrow_mut().see(fv, &q, DVec2::new(al, be));
+        fv * q.jacobian
+    };
+    let diag = rect.min.x == rect.min.y && rect.max.x == rect.max.y;
+    let anti = rect.min.x == -rect.max.y && rect.max.x == -rect.min.y;
+    let c = DVec2::new(0.5 * (al0 + al1), 0.5 * (be0 + be1));
+    let corners = [
+        DVec2::new(al0, be0),
+        DVec2::new(al1, be0),
+        DVec2::new(al1, be1),
+        DVec2::new(al0, be1),
+    ];
+    match (diag, anti) {
+        (false, false) => {
+            let mut total = 0.0;
+            for (al, wa) in rule.on(al0, al1) {
+                for (be, wb) in rule.on(be0, be1) {
+                    total += wa * wb * h(al, be);
+                }
+            }
+            total
+        }
+        // Split along the kink line(s): the main diagonal joins corners 0 and 2, the
+        // anti-diagonal corners 1 and 3; with both, four triangles meet at the centre.
+        (true, false) => {
+            triangle(rule, corners[0], corners[1], corners[2], &h)
+                + triangle(rule, corners[0], corners[2], corners[3], &h)
+        }
+        (false, true) => {
+            triangle(rule, corners[1], corners[2], corners[3], &h)
+                + triangle(rule, corners[1], corners[3], corners[0], &h)
+        }
+        (true, true) => (0..4)
+            .map(|k| triangle(rule, c, corners[k], corners[(k + 1) % 4], &h))
+            .sum(),
+    }
+}
+
+/// ∫ over the triangle (v0, v1, v2) by the collapsed (Duffy) tensor rule: exact for
+/// polynomials of the rule's degree, no evaluation on the edges.
+fn triangle(rule: &UnitRule, v0: DVec2, v1: DVec2, v2: DVec2, h: &impl Fn(f64, f64) -> f64) -> f64 {
+    let det = ((v1 - v0).perp_dot(v2 - v0)).abs();
+    let mut total = 0.0;
+    for (s, ws) in rule.on(0.0, 1.0) {
+        for (t, wt) in rule.on(0.0, 1.0) {
+            let p = v0 + s * (v1 - v0) + s * t * (v2 - v1);
+            total += ws * wt * s * h(p.x, p.y);
+        }
+    }
+    total * det
+}
+
+/// Adaptive ∫ f over `rect` ∩ disk: compares one application of the rule with the sum over
+/// the four quadrants and recurses where they differ by more than `tol` (each quadrant with
+/// half the tolerance), at most `depth` levels. Returns the refined estimate.
+pub fn integrate_adaptive(
+    map: DiskMap,
+    rect: &Rect,
+    rule: &UnitRule,
+    tol: f64,
+    depth: u32,
+    f: &impl Fn(DVec3) -> f64,
+) -> f64 {
+    integrate_adaptive_peak(map, rect, rule, tol, depth, f, &mut Peak::default())
+}
+
+/// [`integrate_adaptive`], also recording the largest values met in `peak`.
+pub fn integrate_adaptive_peak(
+    map: DiskMap,
+    rect: &Rect,
+    rule: &UnitRule,
+    tol: f64,
+    depth: u32,
+    f: &impl Fn(DVec3) -> f64,
+    peak: &mut Peak,
+) -> f64 {
+    let coarse = integrate_once_peak(map, rect, rule, f, peak);
+    refine(map, rect, coarse, rule, tol, depth, f, peak)
+}
+
+/// The refinement of [`integrate_adaptive_peak`] from an already computed one-application
+/// estimate `coarse` of `rect` (for callers that needed it first, to set `tol`).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn refine(
+    map: DiskMap,
+    rect: &Rect,
+    coarse: f64,
+    rule: &UnitRule,
+    tol: f64,
+    depth: u32,
+    f: &impl Fn(DVec3) -> f64,
+    peak: &mut Peak,
+) -> f64 {
+    let quads = rect.quadrants();
+    let parts = quads.map(|q| integrate_once_peak(map, &q, rule, f, peak));
+    let fine: f64 = parts.iter().sum();
+    if depth == 0 || (fine - coarse).abs() <= tol {
+        return fine;
+    }
+    quads
+        .iter()
+        .zip(parts)
+        .map(|(q, c)| refine(map, q, c, rule, 0.5 * tol, depth - 1, f, peak))
+        .sum()
+}
+
+/// One application of the rule over a cell of an adaptive integration, remembered together
+/// with its quadrants' cells once they are computed.
+///
+/// The build keeps a node's cells and hands each child the subtree of its quadrant, so a
+/// child's integration re-uses every application its parent's already made: a rule applied
+/// to the same (dyadic, exactly representable) square gives the same value and peak, so the
+/// memoised integration is bit-identical to the plain one at a fraction of its cost.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Cell {
+    /// One application of the rule over the cell.
+    pub value: f64,
+    /// The largest values that application met.
+    pub peak: Peak,
+    /// The quadrants' cells, once computed, in [`Rect::quadrants`] order.
+    pub quads: Option<alloc::boxed::Box<[Cell; 4]>>,
+}
+
+impl Cell {
+    /// One application of the rule over `rect`.
+    pub fn once(map: DiskMap, rect: &Rect, rule: &UnitRule, f: &impl Fn(DVec3) -> f64) -> Self {
+        let mut peak = Peak::default();
+        let value = integrate_once_peak(map, rect, rule, f, &mut peak);
+        Self {
+            value,
+            peak,
+            quads: None,
+        }
+    }
+
+    /// The number of cells held (this one and every remembered quadrant below it).
+    pub fn count(&self) -> usize {
+        1 + self
+            .quads
+            .as_ref()
+            .map_or(0, |q| q.iter().map(Cell::count).sum::<usize>())
+    }
+
+    /// The rule applications [`refine_cells`] with this `tol` and `depth` visits below this
+    /// cell, memoised or not: the work of a plain adaptive integration, which depends only on
+    /// the values (not on what a cache kept). Call it on a cell `refine_cells` just refined.
+    pub fn applications(&self, tol: f64, depth: u32) -> u64 {
+        let Some(q) = &self.quads else {
+            return 0;
+        };
+        let fine: f64 = q.iter().map(|c| c.value).sum();
+        if depth == 0 || (fine - self.value).abs() <= tol {
+            return 4;
+        }
+        4 + q
+            .iter()
+            .map(|c| c.applications(0.5 * tol, depth - 1))
+            .sum::<u64>()
+    }
+
+    /// Forgets the remembered quadrants more than `levels` levels below this cell. Values
+    /// are unaffected: a forgotten application is recomputed bit for bit when needed.
+    pub fn prune(&mut self, levels: u32) {
+        if levels == 0 {
+            self.quads = None;
+        } else if let Some(q) = &mut self.quads {
+            for c in q.iter_mut() {
+                c.prune(levels - 1);
+            }
+        }
+    }
+
+    /// The four quadrant cells, taken out of this one (`None` when never computed).
+    pub fn into_quads(self) -> [Option<Cell>; 4] {
+        match self.quads {
+            Some(q) => (*q).map(Some),
+            None => [None, None, None, None],
+        }
+    }
+}
+
+/// Runs `a` and `b`, on two threads when `par` and the `rayon` feature allow it.
+#[inline]
+pub(crate) fn join<A: Send, B: Send>(
+    par: bool,
+    a: impl FnOnce() -> A + Send,
+    b: impl FnOnce() -> B + Send,
+) -> (A, B) {
+    #[cfg(feature = "rayon")]
+    if par {
+        return rayon::join(a, b);
+    }
+    let _ = par;
+    (a(), b())
+}
+
+/// [`refine`] over remembered cells: computes only the applications `cell` does not hold yet
+/// (and keeps them in it). Same value and peak as [`refine`] from `cell.value`. The top
+/// `par_levels` levels of the recursion run their quadrants in parallel (feature `rayon`);
+/// the result does not depend on it.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn refine_cells(
+    map: DiskMap,
+    rect: &Rect,
+    cell: &mut Cell,
+    rule: &UnitRule,
+    tol: f64,
+    depth: u32,
+    f: &(impl Fn(DVec3) -> f64 + Sync),
+    peak: &mut Peak,
+    par_levels: u32,
+) -> f64 {
+    let quads = rect.quadrants();
+    let coarse = cell.value;
+    let cells = cell
+        .quads
+        .get_or_insert_with(|| alloc::boxed::Box::new(quads.map(|q| Cell::once(map, &q, rule, f))));
+    for c in cells.iter() {
+        peak.merge(&c.peak);
+    }
+    let fine: f64 = cells.iter().map(|c| c.value).sum();
+    if depth == 0 || (fine - coarse).abs() <= tol {
+        return fine;
+    }
+    let par = par_levels > 0;
+    let next = par_levels.saturating_sub(1);
+    let one = |q: &Rect, c: &mut Cell| {
+        let mut local = Peak::default();
+        let v = refine_cells(map, q, c, rule, 0.5 * tol, depth - 1, f, &mut local, next);
+        (v, local)
+    };
+    let [c0, c1, c2, c3] = &mut **cells;
+    let ((r0, r1), (r2, r3)) = join(
+        par,
+        || join(par, || one(&quads[0], c0), || one(&quads[1], c1)),
+        || join(par, || one(&quads[2], c2), || one(&quads[3], c3)),
+    );
+    let parts = [r0, r1, r2, r3];
+    for (_, p) in &parts {
+        peak.merge(p);
+    }
+    parts.iter().map(|(v, _)| v).sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::chart::tests::nodes;
+    use core::f64::consts::PI;
+
+    /// ∫ 1 over the disk = π (orthographic); over the square = 4 (concentric); ∫ z = 2π/3 on the
+    /// disk; the sums over any dyadic level must reproduce them to near machine precision.
+    #[test]
+    fn chart_rules_integrate_exactly_across_the_rim() {
+        let rule = UnitRule::new(10);
+        for depth in 0..5 {
+            let one: f64 = nodes(depth)
+                .iter()
+                .map(|r| integrate_once(DiskMap::Orthographic, r, &rule, &|_| 1.0))
+                .sum();
+            // The rim remapping trades a little accuracy on the root's single big piece.
+            let tol = if depth == 0 { 1e-5 } else { 1e-9 };
+            assert!((one - PI).abs() < tol, "depth {depth}: {one}");
+            let z: f64 = nodes(depth)
+                .iter()
+                .map(|r| integrate_once(DiskMap::Orthographic, r, &rule, &|w| w.z))
+                .sum();
+            assert!((z - 2.0 * PI / 3.0).abs() < tol, "depth {depth}: {z}");
+            let sq: f64 = nodes(depth)
+                .iter()
+                .map(|r| integrate_once(DiskMap::Concentric, r, &rule, &|_| 1.0))
+                .sum();
+            assert!((sq - 4.0).abs() < 1e-9, "depth {depth}: {sq}");
+            // ∫ z over the concentric square = (4/π) ∫ z dA_disk = (4/π)(2π/3) = 8/3.
+            let zc: f64 = nodes(depth)
+                .iter()
+                .map(|r| integrate_once(DiskMap::Concentric, r, &rule, &|w| w.z))
+                .sum();
+            assert!((zc - 8.0 / 3.0).abs() < 1e-6, "depth {depth}: {zc}");
+        }
+    }
+
+    #[test]
+    fn single_nodes_match_closed_forms() {
+        let rule = UnitRule::new(8);
+        // Quarter disk [0,1]²: area π/4.
+        let r = Rect::square(0.0, 0.0, 1.0);
+        assert!(
+            (integrate_once(DiskMap::Orthographic, &r, &rule, &|_| 1.0) - PI / 4.0).abs() < 1e-9
+        );
+        // A node crossing the rim: [0.5,1]×[0.5,1] ∩ disk, area by the closed form.
+        let r = Rect::square(0.5, 0.5, 0.5);
+        let x0 = (0.75f64).sqrt();
+        // ∫_{0.5}^{x0} (√(1−x²) − 0.5) dx
+        let prim = |x: f64| 0.5 * (x * (1.0 - x * x).sqrt() + x.asin());
+        let exact = prim(x0) - prim(0.5) - 0.5 * (x0 - 0.5);
+        let got = integrate_once(DiskMap::Orthographic, &r, &rule, &|_| 1.0);
+        assert!((got - exact).abs() < 1e-9, "{got} vs {exact}");
+    }
+
+    #[test]
+    fn adaptive_integration_resolves_a_sharp_lobe() {
+        let rule = UnitRule::new(6);
+        // cos^n of the angle to the normal, n = 2000: ∫ z^n dx dy over the disk
+        // = ∫ cos^n θ cos θ dω = 2π/(n+2).
+        let n = 2000.0;
+        let f = |w: DVec3| m::pow(w.z, n);
+        let got = integrate_adaptive(
+            DiskMap::Orthographic,
+            &Rect::square(-1.0, -1.0, 2.0),
+            &rule,
+            1e-9,
+            14,
+            &f,
+        );
+        let want = 2.0 * PI / (n + 2.0);
+        assert!((got - want).abs() < 1e-6 * want, "{got} vs {want}");
+        let got = integrate_adaptive(
+            DiskMap::Concentric,
+            &Rect::square(-1.0, -1.0, 2.0),
+            &rule,
+            1e-9,
+            14,
+            &f,
+        );
+        let want = want * 4.0 / PI;
+        assert!((got - want).abs() < 1e-6 * want, "{got} vs {want}");
+    }
+
+    /// The build's memoised integration is the plain one, bit for bit: from a fresh cell,
+    /// again over the cells it kept (serial or parallel), and in each quadrant continuing
+    /// from the parent's cells with the child's own tolerance (what a split hands down).
+    #[test]
+    fn memoised_integration_is_the_plain_one_bit_for_bit() {
+        let rule = UnitRule::new(6);
+        // A sharp lobe off the centre, which refinement follows deep into one corner, on a
+        // flat floor, whose ties in f test that peaks merge in visiting order (first wins).
+        let c = DVec3::new(0.5, -0.3, 0.812_403_840_463_596).normalize();
+        let f = |w: DVec3| m::pow(w.dot(c).max(0.0), 3000.0).max(0.05);
+        let root = Rect::square(-1.0, -1.0, 2.0);
+        for map in [DiskMap::Orthographic, DiskMap::Concentric] {
+            let (tol, depth) = (1e-7, 12);
+            let mut want_peak = Peak::default();
+            let want = integrate_adaptive_peak(map, &root, &rule, tol, depth, &f, &mut want_peak);
+            let mut cell = Cell::once(map, &root, &rule, &f);
+            for par_levels in [0, u32::MAX, 0] {
+                let mut peak = cell.peak;
+                let got = refine_cells(
+                    map, &root, &mut cell, &rule, tol, depth, &f, &mut peak, par_levels,
+                );
+                assert_eq!(got.to_bits(), want.to_bits(), "{map:?} par {par_levels}");
+                assert_eq!(peak, want_peak, "{map:?} par {par_levels}");
+            }
+            let quads = root.quadrants();
+            for (q, sub) in quads.iter().zip(cell.into_quads()) {
+                let mut sub = sub.expect("the root's refinement computed its quadrants");
+                let tol = 1e-3 * sub.value.abs();
+                let mut want_peak = Peak::default();
+                let want = integrate_adaptive_peak(map, q, &rule, tol, depth, &f, &mut want_peak);
+                let mut peak = sub.peak;
+                let got = refine_cells(map, q, &mut sub, &rule, tol, depth, &f, &mut peak, 1);
+                assert_eq!(got.to_bits(), want.to_bits(), "{map:?} {q:?}");
+                assert_eq!(peak, want_peak, "{map:?} {q:?}");
+            }
+        }
+    }
+}
