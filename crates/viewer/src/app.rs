@@ -3,9 +3,13 @@
 
 use crate::export;
 use crate::lobe::{LobeMesh, LobePaint, LobeResources, OrbitCamera, project};
+use crate::panels::{
+    Command, ExportPanel, GridKind, IncidentPanel, Inputs, MAX_THETA_DEG, ModelPanel, SamplesPanel,
+    StatsPanel, StatsView, Style, TreePanel, ViewPanel,
+};
 use crate::views::{self, Background};
 use crate::worker::{FrMap, Request, SampleState, SamplerKind, TreeView, Update, Worker};
-use brdf_core::geometry::{spherical_angles, spherical_direction};
+use brdf_core::geometry::spherical_angles;
 use brdf_core::registry::{self, ModelInfo};
 use brdf_core::{Brdf, DiskMap, ParamKind, ParamSet, ParamValue};
 use brdf_validate::{CellGrid, ChiSquare, Histogram, chi_square};
@@ -13,14 +17,11 @@ use eframe::egui::scroll_area::ScrollBarVisibility;
 use eframe::egui::{self, Color32, Rect, Sense, Stroke, TextureHandle, TextureOptions, vec2};
 use eframe::egui_wgpu;
 use glam::{Vec2, Vec3};
-use quadtree_sampler::{BuildConfig, TreeStats};
+use quadtree_sampler::TreeStats;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
-
-/// Largest θi the sliders and the disk drag allow, in degrees.
-pub const MAX_THETA_DEG: f32 = 89.0;
 
 /// Significance of the live χ² verdict (one test).
 pub const ALPHA: f64 = 0.01;
@@ -105,15 +106,6 @@ impl Launch {
     }
 }
 
-/// Cell layout of the histograms.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum GridKind {
-    /// R × R squares over [−1,1]² (the seed's grid).
-    Square,
-    /// R rings × (2R+1) sectors of equal area.
-    Polar,
-}
-
 /// The results of the current (or last) job, as they arrive.
 #[derive(Default)]
 struct Results {
@@ -147,27 +139,10 @@ impl LiveTest {
 
 /// The whole state of the viewer.
 pub struct ViewerApp {
-    model: &'static ModelInfo,
-    params: ParamSet,
+    /// What the user chose (the model, wi, the tree's and the sampler's options).
+    inputs: Inputs,
     brdf: Result<Arc<dyn Brdf>, String>,
-    /// θi in degrees.
-    pub theta_deg: f32,
-    /// φi in degrees.
-    pub phi_deg: f32,
-    map: DiskMap,
-    split_threshold: f64,
-    max_depth: u8,
-    use_target: bool,
-    target_trials: f64,
-    sampler: SamplerKind,
-    samples: u64,
-    grid_kind: GridKind,
-    cells: usize,
-    seed: u64,
-    log_scale: bool,
-    background: Background,
-    outlines: bool,
-    points: bool,
+    style: Style,
     camera: OrbitCamera,
 
     worker: Worker,
@@ -186,15 +161,12 @@ pub struct ViewerApp {
     view_rects: BTreeMap<&'static str, Rect>,
     /// Where the disk view's caption was laid out (wrapped inside the view).
     caption_rect: Rect,
-    export_dir: String,
-    export_status: Option<String>,
+    export: ExportPanel,
     screenshots: (
         Sender<Arc<egui::ColorImage>>,
         Receiver<Arc<egui::ColorImage>>,
     ),
     export_pending: Option<PathBuf>,
-    /// The text of a path parameter being edited (committed with Enter or "open").
-    path_text: String,
 }
 
 impl ViewerApp {
@@ -217,25 +189,25 @@ impl ViewerApp {
             samples,
         } = launch;
         let mut app = Self {
-            model,
-            params,
+            inputs: Inputs {
+                model,
+                params,
+                path_text: String::new(),
+                theta_deg,
+                phi_deg,
+                map: DiskMap::Orthographic,
+                split_threshold: 0.5,
+                max_depth: 20,
+                use_target: false,
+                target_trials: 1.25,
+                sampler: SamplerKind::Rejection,
+                samples,
+                grid_kind: GridKind::Square,
+                cells: 16,
+                seed: 1,
+            },
             brdf: Err(String::new()),
-            theta_deg,
-            phi_deg,
-            map: DiskMap::Orthographic,
-            split_threshold: 0.5,
-            max_depth: 20,
-            use_target: false,
-            target_trials: 1.25,
-            sampler: SamplerKind::Rejection,
-            samples,
-            grid_kind: GridKind::Square,
-            cells: 16,
-            seed: 1,
-            log_scale: false,
-            background: Background::Fr,
-            outlines: true,
-            points: true,
+            style: Style::default(),
             camera: OrbitCamera::default(),
             worker: Worker::spawn(move || ctx.request_repaint()),
             generation: 0,
@@ -250,16 +222,17 @@ impl ViewerApp {
             has_wgpu,
             view_rects: BTreeMap::new(),
             caption_rect: Rect::NOTHING,
-            export_dir: "viewer-export".into(),
-            export_status: None,
+            export: ExportPanel {
+                dir: "viewer-export".into(),
+                status: None,
+            },
             screenshots: channel(),
             export_pending: None,
-            path_text: String::new(),
         };
-        if let Some(p) = app.params.iter().find_map(|(s, v)| {
+        if let Some(p) = app.inputs.params.iter().find_map(|(s, v)| {
             (s.kind == ParamKind::Path).then(|| v.text().unwrap_or("").to_owned())
         }) {
-            app.path_text = p;
+            app.inputs.path_text = p;
         }
         app.rebuild_brdf();
         app
@@ -268,35 +241,48 @@ impl ViewerApp {
     /// The current model's registry name.
     #[must_use]
     pub fn model_name(&self) -> &'static str {
-        self.model.name
+        self.inputs.model.name
     }
 
     /// Switches to model `name` with its default parameters.
     pub fn set_model(&mut self, name: &str) -> Result<(), String> {
-        self.model = registry::find(name).map_err(|e| e.to_string())?;
-        self.params = self.model.defaults();
-        if self.model.measured && !self.path_text.is_empty() {
+        self.inputs.model = registry::find(name).map_err(|e| e.to_string())?;
+        self.inputs.params = self.inputs.model.defaults();
+        if self.inputs.model.measured && !self.inputs.path_text.is_empty() {
             // Back to the measured model: the file last named is still the one meant.
-            if let Some(spec) = self.model.params.iter().find(|p| p.kind == ParamKind::Path) {
+            if let Some(spec) = self
+                .inputs
+                .model
+                .params
+                .iter()
+                .find(|p| p.kind == ParamKind::Path)
+            {
                 let _ = self
+                    .inputs
                     .params
-                    .set(spec.name, ParamValue::Path(self.path_text.clone()));
+                    .set(spec.name, ParamValue::Path(self.inputs.path_text.clone()));
             }
         }
         self.rebuild_brdf();
         Ok(())
     }
 
+    /// What the user chose (the model, wi, the tree's and the sampler's options).
+    #[must_use]
+    pub fn inputs(&self) -> &Inputs {
+        &self.inputs
+    }
+
     /// The incident direction (local frame).
     #[must_use]
     pub fn wi(&self) -> Vec3 {
-        spherical_direction(self.theta_deg.to_radians(), self.phi_deg.to_radians())
+        self.inputs.wi()
     }
 
     /// Sets the incident direction from angles in degrees (θ clamped to [0, 89°]).
     pub fn set_angles(&mut self, theta_deg: f32, phi_deg: f32) {
-        self.theta_deg = theta_deg.clamp(0.0, MAX_THETA_DEG);
-        self.phi_deg = phi_deg;
+        self.inputs.theta_deg = theta_deg.clamp(0.0, MAX_THETA_DEG);
+        self.inputs.phi_deg = phi_deg;
         self.dirty = true;
     }
 
@@ -334,7 +320,7 @@ impl ViewerApp {
     /// The square point (of the current map) where wi is marked on the disk view.
     #[must_use]
     pub fn wi_square_point(&self) -> Vec2 {
-        self.map.direction_to_square(self.wi())
+        self.inputs.map.direction_to_square(self.wi())
     }
 
     /// One line per result for scripts: the tree's statistics, the sampling tallies and
@@ -343,10 +329,10 @@ impl ViewerApp {
     pub fn summary(&self) -> String {
         let mut out = format!(
             "model {} wi theta={:.2} phi={:.2} sampler {}\n",
-            self.model.name,
-            self.theta_deg,
-            self.phi_deg,
-            self.sampler.name()
+            self.inputs.model.name,
+            self.inputs.theta_deg,
+            self.inputs.phi_deg,
+            self.inputs.sampler.name()
         );
         if let Some((_, s, seconds, albedo)) = &self.results.tree {
             out += &format!(
@@ -416,51 +402,6 @@ impl ViewerApp {
         })
     }
 
-    fn grid(&self) -> CellGrid {
-        match self.grid_kind {
-            GridKind::Square => CellGrid::Square { res: self.cells },
-            GridKind::Polar => CellGrid::Polar {
-                rings: self.cells,
-                sectors: 2 * self.cells + 1,
-            },
-        }
-    }
-
-    fn config(&self) -> BuildConfig {
-        BuildConfig {
-            map: self.map,
-            split_threshold: self.split_threshold,
-            max_depth: self.max_depth,
-            target_trials: self.use_target.then_some(self.target_trials),
-            ..BuildConfig::default()
-        }
-    }
-
-    /// A path parameter: a text field committed with Enter or the "open" button (a file is
-    /// read once per commit, not per keystroke). Returns whether the value changed.
-    fn path_field(&mut self, ui: &mut egui::Ui, spec: &'static brdf_core::ParamSpec) -> bool {
-        let mut commit = false;
-        ui.label(spec.name).on_hover_text(spec.doc);
-        ui.horizontal(|ui| {
-            let edit = ui.add(
-                egui::TextEdit::singleline(&mut self.path_text)
-                    .hint_text("path to a .binary file, or drop one on the window")
-                    .desired_width(200.0),
-            );
-            commit |= edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
-            commit |= ui.button("open").clicked();
-        });
-        if !commit {
-            return false;
-        }
-        self.params
-            .set(
-                spec.name,
-                ParamValue::Path(self.path_text.trim().to_owned()),
-            )
-            .is_ok()
-    }
-
     /// Opens a measured BRDF file: switches to the model with a path parameter (`merl`) and
     /// sets it; errors (a malformed file) show in the window like every other model error.
     pub fn open_file(&mut self, path: &std::path::Path) {
@@ -470,15 +411,16 @@ impl ViewerApp {
         else {
             return;
         };
-        if self.model.name != info.name {
-            self.model = info;
-            self.params = info.defaults();
+        if self.inputs.model.name != info.name {
+            self.inputs.model = info;
+            self.inputs.params = info.defaults();
         }
-        self.path_text = path.display().to_string();
+        self.inputs.path_text = path.display().to_string();
         if let Some(spec) = info.params.iter().find(|p| p.kind == ParamKind::Path) {
             let _ = self
+                .inputs
                 .params
-                .set(spec.name, ParamValue::Path(self.path_text.clone()));
+                .set(spec.name, ParamValue::Path(self.inputs.path_text.clone()));
         }
         self.rebuild_brdf();
     }
@@ -491,8 +433,9 @@ impl ViewerApp {
 
     fn rebuild_brdf(&mut self) {
         self.brdf = self
+            .inputs
             .model
-            .build(&self.params)
+            .build(&self.inputs.params)
             .map(Arc::from)
             .map_err(|e| e.to_string());
         self.dirty = true;
@@ -508,11 +451,11 @@ impl ViewerApp {
                     generation: self.generation,
                     brdf: Arc::clone(brdf),
                     wi: self.wi(),
-                    config: self.config(),
-                    sampler: self.sampler,
-                    samples: self.samples,
-                    grid: self.grid(),
-                    seed: self.seed,
+                    config: self.inputs.config(),
+                    sampler: self.inputs.sampler,
+                    samples: self.inputs.samples,
+                    grid: self.inputs.grid(),
+                    seed: self.inputs.seed,
                     map_res: 256,
                     lobe_res: 64,
                 }),
@@ -547,12 +490,12 @@ impl ViewerApp {
                     self.textures_stale = true;
                 }
                 Update::Expected(_, mass) => {
-                    self.results.expected = Some((self.grid(), mass));
+                    self.results.expected = Some((self.inputs.grid(), mass));
                     self.results.samples = None;
                 }
                 Update::Samples(_, state) => {
                     self.results.samples = Some(state);
-                    self.results.samples_grid = Some(self.grid());
+                    self.results.samples_grid = Some(self.inputs.grid());
                 }
                 Update::Done(g) => self.finished = g,
                 Update::Failed(g, message) => {
@@ -567,15 +510,38 @@ impl ViewerApp {
         }
     }
 
+    /// Carries out what the panels asked for this frame, in order: the one place their side
+    /// effects happen.
+    fn execute(&mut self, ctx: &egui::Context, commands: Vec<Command>) {
+        for command in commands {
+            match command {
+                Command::SetModel(name) => {
+                    // Picked from the registry's own list, so it is there.
+                    let _ = self.set_model(name);
+                }
+                Command::RebuildModel => self.rebuild_brdf(),
+                Command::Resubmit => self.dirty = true,
+                Command::Restyle => self.textures_stale = true,
+                Command::Export(dir) => {
+                    self.export_pending = Some(dir);
+                    let tx = self.screenshots.0.clone();
+                    ctx.request_screenshot(move |image| {
+                        let _ = tx.send(image);
+                    });
+                }
+            }
+        }
+    }
+
     fn refresh_textures(&mut self, ctx: &egui::Context) {
         if !self.textures_stale {
             return;
         }
         self.textures_stale = false;
         if let Some(fr) = &self.results.fr {
-            let image = views::fr_image(fr, self.log_scale);
+            let image = views::fr_image(fr, self.style.log_scale);
             self.fr_texture = Some(ctx.load_texture("f_r", image, TextureOptions::NEAREST));
-            self.leaf_texture = match (&self.results.tree, self.background) {
+            self.leaf_texture = match (&self.results.tree, self.style.background) {
                 (_, Background::Fr) | (None, _) => None,
                 (Some((tree, ..)), bg) => Some(ctx.load_texture(
                     "leaves",
@@ -586,246 +552,13 @@ impl ViewerApp {
         }
     }
 
-    fn controls(&mut self, ui: &mut egui::Ui) {
-        ui.heading("Model");
-        let mut chosen = self.model.name;
-        egui::ComboBox::from_label("model")
-            .selected_text(chosen)
-            .show_ui(ui, |ui| {
-                for m in registry::models() {
-                    ui.selectable_value(&mut chosen, m.name, m.name);
-                }
-            });
-        if chosen != self.model.name {
-            // Picked from the registry's own list, so it is there.
-            let _ = self.set_model(chosen);
-        }
-        ui.label(self.model.summary);
-        let mut changed = false;
-        for spec in self.model.params {
-            let Ok(value) = self.params.get(spec.name) else {
-                continue;
-            };
-            match spec.kind {
-                ParamKind::Path => {
-                    changed |= self.path_field(ui, spec);
-                    continue;
-                }
-                ParamKind::Choice(options) => {
-                    let mut chosen = value.text().unwrap_or("").to_owned();
-                    ui.horizontal(|ui| {
-                        ui.label(spec.name).on_hover_text(spec.doc);
-                        egui::ComboBox::from_id_salt(spec.name)
-                            .selected_text(chosen.clone())
-                            .show_ui(ui, |ui| {
-                                for o in options {
-                                    ui.selectable_value(&mut chosen, (*o).to_owned(), *o);
-                                }
-                            });
-                    });
-                    if Some(chosen.as_str()) != value.text()
-                        && let Some(o) = options.iter().find(|o| **o == chosen)
-                    {
-                        changed |= self.params.set(spec.name, ParamValue::Choice(o)).is_ok();
-                    }
-                    continue;
-                }
-                ParamKind::Scalar | ParamKind::Rgb => {}
-            }
-            let mut v = value.rgb().to_array();
-            let channels = if spec.kind == ParamKind::Rgb { 3 } else { 1 };
-            ui.horizontal(|ui| {
-                ui.label(spec.name).on_hover_text(spec.doc);
-                for c in v.iter_mut().take(channels) {
-                    let speed = (spec.max - spec.min) / 300.0;
-                    changed |= ui
-                        .add(
-                            egui::DragValue::new(c)
-                                .range(spec.min..=spec.max)
-                                .speed(speed),
-                        )
-                        .on_hover_text(spec.doc)
-                        .changed();
-                }
-            });
-            let new = if spec.kind == ParamKind::Rgb {
-                ParamValue::Rgb(Vec3::from_array(v))
-            } else {
-                ParamValue::Scalar(v[0])
-            };
-            // A value at an open end of its range (e.g. 0 for (0, 1]) is refused: keep the old.
-            let _ = self.params.set(spec.name, new);
-        }
-        if changed {
-            self.rebuild_brdf();
-        }
-        if let Err(e) = &self.brdf {
-            ui.colored_label(Color32::LIGHT_RED, e);
-        }
-
-        ui.separator();
-        ui.heading("Incident direction");
-        let mut moved = ui
-            .add(egui::Slider::new(&mut self.theta_deg, 0.0..=MAX_THETA_DEG).text("θi (deg)"))
-            .changed();
-        moved |= ui
-            .add(egui::Slider::new(&mut self.phi_deg, -180.0..=180.0).text("φi (deg)"))
-            .changed();
-        ui.small("or drag on the disk view");
-        self.dirty |= moved;
-
-        ui.separator();
-        ui.heading("Tree");
-        let mut rebuild = false;
-        egui::ComboBox::from_label("map")
-            .selected_text(map_name(self.map))
-            .show_ui(ui, |ui| {
-                for m in [DiskMap::Orthographic, DiskMap::Concentric] {
-                    rebuild |= ui.selectable_value(&mut self.map, m, map_name(m)).changed();
-                }
-            });
-        rebuild |= ui
-            .add(egui::Slider::new(&mut self.split_threshold, 0.05..=0.95).text("split below P"))
-            .changed();
-        rebuild |= ui
-            .add(egui::Slider::new(&mut self.max_depth, 1..=20).text("max depth"))
-            .changed();
-        ui.horizontal(|ui| {
-            let check = ui.checkbox(&mut self.use_target, "target E[T]");
-            rebuild |= check.changed();
-            rebuild |= ui
-                .add_enabled(
-                    self.use_target,
-                    egui::DragValue::new(&mut self.target_trials)
-                        .range(1.01..=4.0)
-                        .speed(0.01),
-                )
-                .labelled_by(check.id)
-                .changed();
-        });
-
-        ui.separator();
-        ui.heading("Samples");
-        egui::ComboBox::from_label("sampler")
-            .selected_text(self.sampler.name())
-            .show_ui(ui, |ui| {
-                for k in SamplerKind::ALL {
-                    rebuild |= ui
-                        .selectable_value(&mut self.sampler, k, k.name())
-                        .changed();
-                }
-            });
-        rebuild |= ui
-            .add(
-                egui::Slider::new(&mut self.samples, 1_000..=10_000_000)
-                    .logarithmic(true)
-                    .text("samples"),
-            )
-            .changed();
-        ui.horizontal(|ui| {
-            rebuild |= ui
-                .radio_value(&mut self.grid_kind, GridKind::Square, "square cells")
-                .changed();
-            rebuild |= ui
-                .radio_value(&mut self.grid_kind, GridKind::Polar, "polar cells")
-                .changed();
-        });
-        rebuild |= ui
-            .add(egui::Slider::new(&mut self.cells, 4..=40).text("cells per side / rings"))
-            .changed();
-        rebuild |= ui
-            .add(egui::DragValue::new(&mut self.seed).prefix("seed "))
-            .changed();
-        self.dirty |= rebuild;
-
-        ui.separator();
-        ui.heading("View");
-        self.textures_stale |= ui.checkbox(&mut self.log_scale, "log scale").changed();
-        for (bg, label) in Background::ALL {
-            self.textures_stale |= ui.radio_value(&mut self.background, bg, label).changed();
-        }
-        ui.checkbox(&mut self.outlines, "leaf outlines");
-        ui.checkbox(&mut self.points, "sample points");
-
-        ui.separator();
-        ui.heading("Export");
-        ui.horizontal(|ui| {
-            let label = ui.label("folder");
-            ui.text_edit_singleline(&mut self.export_dir)
-                .labelled_by(label.id);
-            if ui.button("Export PNG + EXR").clicked() {
-                self.export_pending = Some(PathBuf::from(&self.export_dir));
-                let tx = self.screenshots.0.clone();
-                ui.ctx().request_screenshot(move |image| {
-                    let _ = tx.send(image);
-                });
-            }
-        });
-        if let Some(s) = &self.export_status {
-            ui.small(s);
-        }
-    }
-
-    fn stats(&self, ui: &mut egui::Ui) {
-        ui.heading("Stats");
-        if !self.is_idle() {
-            ui.horizontal(|ui| {
-                ui.spinner();
-                let progress = self
-                    .results
-                    .samples
-                    .as_ref()
-                    .map_or(0.0, |s| s.drawn as f32 / s.target.max(1) as f32);
-                ui.add(egui::ProgressBar::new(progress).show_percentage());
-            });
-        }
-        if let Some(e) = &self.results.error {
-            ui.colored_label(Color32::LIGHT_RED, e);
-        }
-        egui::Grid::new("stats").num_columns(2).show(ui, |ui| {
-            if let Some((_, s, seconds, albedo)) = &self.results.tree {
-                row(ui, "nodes", s.nodes.to_string());
-                row(
-                    ui,
-                    "leaves",
-                    format!("{} ({} live)", s.leaves, s.live_leaves),
-                );
-                row(ui, "depth", s.max_depth.to_string());
-                row(ui, "E[T] (tree)", format!("{:.3}", s.expected_trials));
-                row(
-                    ui,
-                    "bytes",
-                    format!("{} ({} per node)", s.bytes, s.bytes / s.nodes.max(1)),
-                );
-                row(ui, "build", format!("{:.1} ms", seconds * 1e3));
-                row(ui, "albedo", format!("{albedo:.4}"));
-            }
-            if let Some(s) = &self.results.samples {
-                row(ui, "drawn", format!("{} / {}", s.drawn, s.target));
-                let ok = s.drawn - s.lost;
-                row(
-                    ui,
-                    "trials / sample",
-                    format!("{:.3}", s.trials as f64 / ok.max(1) as f64),
-                );
-                row(
-                    ui,
-                    "sampling",
-                    format!("{:.0} ns / sample", s.seconds * 1e9 / s.drawn.max(1) as f64),
-                );
-                row(ui, "lost", s.lost.to_string());
-                row(ui, "bound violations", s.bound_violations.to_string());
-            }
-        });
-    }
-
     fn disk_view(&mut self, ui: &mut egui::Ui, side: f32) {
         let (response, painter) = ui.allocate_painter(vec2(side, side), Sense::click_and_drag());
         let rect = response.rect;
         self.view_rects.insert("disk", rect);
         painter.rect_filled(rect, 0.0, views::OUTSIDE);
         let uv = Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
-        let texture = match self.background {
+        let texture = match self.style.background {
             Background::Fr => self.fr_texture.as_ref(),
             _ => self.leaf_texture.as_ref().or(self.fr_texture.as_ref()),
         };
@@ -833,13 +566,13 @@ impl ViewerApp {
             painter.image(tex.id(), rect, uv, Color32::WHITE);
         }
         if let Some((tree, ..)) = &self.results.tree
-            && self.outlines
-            && tree.map() == self.map
+            && self.style.outlines
+            && tree.map() == self.inputs.map
         {
             let stroke = Stroke::new(0.6, Color32::from_rgba_unmultiplied(255, 255, 255, 110));
             painter.extend(views::leaf_outlines(tree, rect, stroke));
         }
-        if self.points
+        if self.style.points
             && let Some(s) = &self.results.samples
         {
             let color = Color32::from_rgba_unmultiplied(255, 150, 60, 200);
@@ -849,11 +582,11 @@ impl ViewerApp {
         }
         // Markers: the normal (+), wi (circle) and its mirror (ring).
         let wi = self.wi();
-        let normal = views::to_screen(rect, self.map.direction_to_square(Vec3::Z));
+        let normal = views::to_screen(rect, self.inputs.map.direction_to_square(Vec3::Z));
         let cross = Stroke::new(1.5, Color32::WHITE);
         painter.line_segment([normal - vec2(6.0, 0.0), normal + vec2(6.0, 0.0)], cross);
         painter.line_segment([normal - vec2(0.0, 6.0), normal + vec2(0.0, 6.0)], cross);
-        let wi_pos = views::to_screen(rect, self.map.direction_to_square(wi));
+        let wi_pos = views::to_screen(rect, self.inputs.map.direction_to_square(wi));
         painter.circle(
             wi_pos,
             5.0,
@@ -861,7 +594,7 @@ impl ViewerApp {
             Stroke::new(1.5, Color32::BLACK),
         );
         let mirror = Vec3::new(-wi.x, -wi.y, wi.z);
-        let mirror_pos = views::to_screen(rect, self.map.direction_to_square(mirror));
+        let mirror_pos = views::to_screen(rect, self.inputs.map.direction_to_square(mirror));
         painter.circle_stroke(
             mirror_pos,
             7.0,
@@ -872,7 +605,7 @@ impl ViewerApp {
             rect,
             format!(
                 "{} square [−1,1]²: + normal, blue dot wi, pink ring mirror (drag to move wi)",
-                map_name(self.map)
+                self.inputs.map.name()
             ),
         );
         if (response.dragged() || response.clicked())
@@ -885,15 +618,15 @@ impl ViewerApp {
     /// Sets wi to the direction whose square point is `p` (clamped into the domain).
     fn drag_wi(&mut self, p: Vec2) {
         let p = p.clamp(Vec2::splat(-1.0), Vec2::splat(1.0));
-        let dir = match self.map.square_to_direction(p) {
+        let dir = match self.inputs.map.square_to_direction(p) {
             Some(d) => d,
             // Outside the orthographic disk: the rim point in that azimuth.
             None => Vec3::new(p.x, p.y, 0.0).normalize_or(Vec3::X),
         };
         let (theta, phi) = spherical_angles(dir);
         self.set_angles(theta.to_degrees(), phi.to_degrees().rem_euclid(360.0));
-        if self.phi_deg > 180.0 {
-            self.phi_deg -= 360.0;
+        if self.inputs.phi_deg > 180.0 {
+            self.inputs.phi_deg -= 360.0;
         }
     }
 
@@ -1020,7 +753,7 @@ impl ViewerApp {
         let Some(dir) = self.export_pending.take() else {
             return;
         };
-        self.export_status = Some(match self.export_to(&dir, &image, ctx.pixels_per_point()) {
+        self.export.status = Some(match self.export_to(&dir, &image, ctx.pixels_per_point()) {
             Ok(files) => format!("wrote {} files to {}", files.len(), dir.display()),
             Err(e) => format!("export failed: {e}"),
         });
@@ -1061,19 +794,6 @@ fn caption(painter: &egui::Painter, rect: Rect, text: String) -> Rect {
     drawn
 }
 
-fn row(ui: &mut egui::Ui, name: &str, value: String) {
-    ui.label(name);
-    ui.monospace(value);
-    ui.end_row();
-}
-
-fn map_name(map: DiskMap) -> &'static str {
-    match map {
-        DiskMap::Orthographic => "orthographic",
-        DiskMap::Concentric => "concentric",
-    }
-}
-
 impl eframe::App for ViewerApp {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         let ctx = ui.ctx().clone();
@@ -1085,6 +805,7 @@ impl eframe::App for ViewerApp {
         self.pump();
         self.refresh_textures(&ctx);
         self.finish_export(&ctx);
+        let mut commands = Vec::new();
         egui::Panel::left("controls")
             .default_size(310.0)
             .show(ui, |ui| {
@@ -1101,13 +822,38 @@ impl eframe::App for ViewerApp {
                             .id_salt("stats")
                             .scroll_bar_visibility(ScrollBarVisibility::AlwaysVisible)
                             .auto_shrink([false, false])
-                            .show(ui, |ui| self.stats(ui));
+                            .show(ui, |ui| {
+                                let tree = self.results.tree.as_ref();
+                                StatsPanel::ui(
+                                    ui,
+                                    &StatsView {
+                                        busy: !self.is_idle(),
+                                        error: self.results.error.as_deref(),
+                                        tree: tree.map(|(_, s, secs, albedo)| (s, *secs, *albedo)),
+                                        samples: self.results.samples.as_deref(),
+                                    },
+                                );
+                            });
                     });
                 egui::ScrollArea::vertical()
                     .id_salt("controls")
                     .scroll_bar_visibility(ScrollBarVisibility::AlwaysVisible)
-                    .show(ui, |ui| self.controls(ui));
+                    .show(ui, |ui| {
+                        let error = self.brdf.as_ref().err().map(String::as_str);
+                        ModelPanel::ui(ui, &mut self.inputs, error, &mut commands);
+                        ui.separator();
+                        IncidentPanel::ui(ui, &mut self.inputs, &mut commands);
+                        ui.separator();
+                        TreePanel::ui(ui, &mut self.inputs, &mut commands);
+                        ui.separator();
+                        SamplesPanel::ui(ui, &mut self.inputs, &mut commands);
+                        ui.separator();
+                        ViewPanel::ui(ui, &mut self.style, &mut commands);
+                        ui.separator();
+                        self.export.ui(ui, &mut commands);
+                    });
             });
+        self.execute(&ctx, commands);
         egui::CentralPanel::default().show(ui, |ui| {
             let avail = ui.available_size();
             let top = (avail.y * 0.58).min(avail.x * 0.5).max(120.0);

@@ -12,6 +12,7 @@
 pub mod app;
 pub mod export;
 pub mod lobe;
+pub mod panels;
 pub mod screenshot;
 pub mod views;
 pub mod worker;

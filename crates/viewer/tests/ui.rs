@@ -69,9 +69,9 @@ fn moving_the_theta_slider_moves_wi_and_rebuilds() {
         .set_value_accesskit(70.0);
     h.run_steps(2);
     assert!(
-        (h.state().theta_deg - 70.0).abs() < 1e-3,
+        (h.state().inputs().theta_deg - 70.0).abs() < 1e-3,
         "θ = {}",
-        h.state().theta_deg
+        h.state().inputs().theta_deg
     );
     settle(&mut h);
     let after = h.state().tree_stats().unwrap().clone();
@@ -97,7 +97,7 @@ fn dragging_on_the_disk_sets_the_incident_direction() {
     h.run_steps(1);
     h.drop_at(target);
     h.run_steps(2);
-    let (theta, phi) = (h.state().theta_deg, h.state().phi_deg);
+    let (theta, phi) = (h.state().inputs().theta_deg, h.state().inputs().phi_deg);
     assert!((theta - 45.0).abs() < 1.0, "θ = {theta}");
     assert!((phi - 135.0).abs() < 1.0, "φ = {phi}");
     let p = h.state().wi_square_point();
