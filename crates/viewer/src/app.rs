@@ -1,8 +1,11 @@
-//! The viewer's state and UI: controls on the left; the disk view, the 3D lobe and the
-//! three histogram panels in the centre.
+//! The viewer's state and frame: the panels on the left ([`crate::panels`]), the views in
+//! the centre ([`crate::central`]), the worker's results as they arrive, and the one place
+//! where the panels' commands take effect.
 
+use crate::central::{ALPHA, DiskScene, DiskView, HistogramsView, LiveTest, LobeView};
 use crate::export;
-use crate::lobe::{LobeMesh, LobePaint, LobeResources, OrbitCamera, project};
+use crate::launch::Resolved;
+use crate::lobe::{LobeMesh, LobeResources, OrbitCamera};
 use crate::panels::{
     Command, ExportPanel, GridKind, IncidentPanel, Inputs, MAX_THETA_DEG, ModelPanel, SamplesPanel,
     StatsPanel, StatsView, Style, TreePanel, ViewPanel,
@@ -10,101 +13,17 @@ use crate::panels::{
 use crate::views::{self, Background};
 use crate::worker::{FrMap, Request, SampleState, SamplerKind, TreeView, Update, Worker};
 use brdf_core::geometry::spherical_angles;
-use brdf_core::registry::{self, ModelInfo};
-use brdf_core::{Brdf, DiskMap, ParamKind, ParamSet, ParamValue};
-use brdf_validate::{CellGrid, ChiSquare, Histogram, chi_square};
+use brdf_core::registry;
+use brdf_core::{Brdf, DiskMap, ParamKind, ParamValue};
+use brdf_validate::{CellGrid, Histogram, chi_square};
 use eframe::egui::scroll_area::ScrollBarVisibility;
-use eframe::egui::{self, Color32, Rect, Sense, Stroke, TextureHandle, TextureOptions, vec2};
-use eframe::egui_wgpu;
+use eframe::egui::{self, Rect, TextureHandle, TextureOptions, vec2};
 use glam::{Vec2, Vec3};
 use quadtree_sampler::TreeStats;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
-
-/// Significance of the live χ² verdict (one test).
-pub const ALPHA: f64 = 0.01;
-
-/// How the viewer starts: the model, its parameters and the incident direction.
-#[derive(Clone, Debug)]
-pub struct Launch {
-    /// Registry name of the model.
-    pub model: String,
-    /// `name=value` parameter assignments, as the `brdf` CLI takes them.
-    pub params: Vec<String>,
-    /// Incident direction (local frame); `None`: θ = 45°, φ = 30°.
-    pub wi: Option<Vec3>,
-    /// Samples to draw.
-    pub samples: u64,
-}
-
-impl Default for Launch {
-    fn default() -> Self {
-        Self {
-            model: "ward".into(),
-            params: Vec::new(),
-            wi: None,
-            samples: 100_000,
-        }
-    }
-}
-
-/// A checked [`Launch`]: everything [`ViewerApp::new`] needs, already validated.
-#[derive(Clone, Debug)]
-pub struct Resolved {
-    model: &'static ModelInfo,
-    params: ParamSet,
-    theta_deg: f32,
-    phi_deg: f32,
-    samples: u64,
-}
-
-impl Launch {
-    /// Checks the model name, the parameters and the incident direction; the error says
-    /// which is wrong and why.
-    pub fn resolve(&self) -> Result<Resolved, String> {
-        let model = registry::find(&self.model).map_err(|e| e.to_string())?;
-        let params = model
-            .parse_params(self.params.iter().map(String::as_str))
-            .map_err(|e| e.to_string())?;
-        model.build(&params).map_err(|e| e.to_string())?;
-        let (theta_deg, phi_deg) = match self.wi {
-            Some(wi) => {
-                let wi = brdf_core::geometry::unit_direction_above(wi)
-                    .map_err(|e| format!("--wi: {e}"))?;
-                let (t, p) = spherical_angles(wi);
-                let t = t.to_degrees();
-                // Used as given or refused, never moved: the sliders stop at 89°.
-                // (A thousandth of a degree of slack for the f32 round trip of 89° itself.)
-                if t > MAX_THETA_DEG + 1e-3 {
-                    return Err(format!(
-                        "--wi: θ = {t:.4}° is beyond the viewer's {MAX_THETA_DEG}° limit (`brdf sample` takes any wi above the horizon)"
-                    ));
-                }
-                (t.min(MAX_THETA_DEG), p.to_degrees())
-            }
-            None => (45.0, 30.0),
-        };
-        if !(1..=100_000_000).contains(&self.samples) {
-            return Err(format!(
-                "--samples {}: must be in 1..=100000000",
-                self.samples
-            ));
-        }
-        Ok(Resolved {
-            model,
-            params,
-            theta_deg,
-            phi_deg: if phi_deg > 180.0 {
-                phi_deg - 360.0
-            } else {
-                phi_deg
-            },
-            samples: self.samples,
-        })
-    }
-}
 
 /// The results of the current (or last) job, as they arrive.
 #[derive(Default)]
@@ -116,25 +35,6 @@ struct Results {
     samples: Option<Arc<SampleState>>,
     samples_grid: Option<CellGrid>,
     error: Option<String>,
-}
-
-/// The live χ² of the current samples against f·cos.
-#[derive(Clone, Debug)]
-pub struct LiveTest {
-    /// Samples that landed in cells.
-    pub samples: u64,
-    /// Observed and expected counts per cell (expected for the samples that landed).
-    pub histogram: Histogram,
-    /// Pearson's χ² (`None` with fewer than two pooled bins).
-    pub chi2: Option<ChiSquare>,
-}
-
-impl LiveTest {
-    /// Whether the χ² test accepts at [`ALPHA`].
-    #[must_use]
-    pub fn passed(&self) -> bool {
-        self.chi2.as_ref().is_some_and(|c| c.p_value >= ALPHA)
-    }
 }
 
 /// The whole state of the viewer.
@@ -522,6 +422,7 @@ impl ViewerApp {
                 Command::RebuildModel => self.rebuild_brdf(),
                 Command::Resubmit => self.dirty = true,
                 Command::Restyle => self.textures_stale = true,
+                Command::SetWiAt(p) => self.drag_wi(p),
                 Command::Export(dir) => {
                     self.export_pending = Some(dir);
                     let tx = self.screenshots.0.clone();
@@ -552,69 +453,6 @@ impl ViewerApp {
         }
     }
 
-    fn disk_view(&mut self, ui: &mut egui::Ui, side: f32) {
-        let (response, painter) = ui.allocate_painter(vec2(side, side), Sense::click_and_drag());
-        let rect = response.rect;
-        self.view_rects.insert("disk", rect);
-        painter.rect_filled(rect, 0.0, views::OUTSIDE);
-        let uv = Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
-        let texture = match self.style.background {
-            Background::Fr => self.fr_texture.as_ref(),
-            _ => self.leaf_texture.as_ref().or(self.fr_texture.as_ref()),
-        };
-        if let Some(tex) = texture {
-            painter.image(tex.id(), rect, uv, Color32::WHITE);
-        }
-        if let Some((tree, ..)) = &self.results.tree
-            && self.style.outlines
-            && tree.map() == self.inputs.map
-        {
-            let stroke = Stroke::new(0.6, Color32::from_rgba_unmultiplied(255, 255, 255, 110));
-            painter.extend(views::leaf_outlines(tree, rect, stroke));
-        }
-        if self.style.points
-            && let Some(s) = &self.results.samples
-        {
-            let color = Color32::from_rgba_unmultiplied(255, 150, 60, 200);
-            for p in &s.points {
-                painter.circle_filled(views::to_screen(rect, *p), 1.0, color);
-            }
-        }
-        // Markers: the normal (+), wi (circle) and its mirror (ring).
-        let wi = self.wi();
-        let normal = views::to_screen(rect, self.inputs.map.direction_to_square(Vec3::Z));
-        let cross = Stroke::new(1.5, Color32::WHITE);
-        painter.line_segment([normal - vec2(6.0, 0.0), normal + vec2(6.0, 0.0)], cross);
-        painter.line_segment([normal - vec2(0.0, 6.0), normal + vec2(0.0, 6.0)], cross);
-        let wi_pos = views::to_screen(rect, self.inputs.map.direction_to_square(wi));
-        painter.circle(
-            wi_pos,
-            5.0,
-            Color32::from_rgb(80, 200, 255),
-            Stroke::new(1.5, Color32::BLACK),
-        );
-        let mirror = Vec3::new(-wi.x, -wi.y, wi.z);
-        let mirror_pos = views::to_screen(rect, self.inputs.map.direction_to_square(mirror));
-        painter.circle_stroke(
-            mirror_pos,
-            7.0,
-            Stroke::new(2.0, Color32::from_rgb(255, 80, 200)),
-        );
-        self.caption_rect = caption(
-            &painter,
-            rect,
-            format!(
-                "{} square [−1,1]²: + normal, blue dot wi, pink ring mirror (drag to move wi)",
-                self.inputs.map.name()
-            ),
-        );
-        if (response.dragged() || response.clicked())
-            && let Some(pos) = response.interact_pointer_pos()
-        {
-            self.drag_wi(views::from_screen(rect, pos));
-        }
-    }
-
     /// Sets wi to the direction whose square point is `p` (clamped into the domain).
     fn drag_wi(&mut self, p: Vec2) {
         let p = p.clamp(Vec2::splat(-1.0), Vec2::splat(1.0));
@@ -627,122 +465,6 @@ impl ViewerApp {
         self.set_angles(theta.to_degrees(), phi.to_degrees().rem_euclid(360.0));
         if self.inputs.phi_deg > 180.0 {
             self.inputs.phi_deg -= 360.0;
-        }
-    }
-
-    fn lobe_view(&mut self, ui: &mut egui::Ui, size: egui::Vec2) {
-        let (response, painter) = ui.allocate_painter(size, Sense::drag());
-        let rect = response.rect;
-        self.view_rects.insert("lobe", rect);
-        if response.dragged() {
-            let d = response.drag_delta();
-            self.camera.drag(d.x, d.y);
-        }
-        painter.rect_filled(rect, 0.0, Color32::from_rgb(23, 23, 28));
-        let view_proj = self.camera.view_proj(rect.width() / rect.height().max(1.0));
-        if let (true, Some(mesh)) = (self.has_wgpu, &self.lobe) {
-            let ppp = ui.ctx().pixels_per_point();
-            painter.add(egui_wgpu::Callback::new_paint_callback(
-                rect,
-                LobePaint {
-                    mesh: Arc::clone(mesh),
-                    view_proj,
-                    size_px: [
-                        (rect.width() * ppp).round() as u32,
-                        (rect.height() * ppp).round() as u32,
-                    ],
-                },
-            ));
-        } else if !self.has_wgpu {
-            painter.text(
-                rect.center(),
-                egui::Align2::CENTER_CENTER,
-                "the 3D lobe needs the wgpu renderer",
-                egui::FontId::proportional(12.0),
-                Color32::GRAY,
-            );
-        }
-        // The incident and mirror vectors, projected with the same camera.
-        let wi = self.wi();
-        let o = project(view_proj, rect, Vec3::ZERO);
-        let arrow = |v: Vec3, color: Color32| {
-            painter.line_segment(
-                [o, project(view_proj, rect, v * 1.2)],
-                Stroke::new(2.0, color),
-            );
-        };
-        arrow(wi, Color32::from_rgb(80, 200, 255));
-        arrow(
-            Vec3::new(-wi.x, -wi.y, wi.z),
-            Color32::from_rgb(255, 80, 200),
-        );
-        arrow(Vec3::Z, Color32::WHITE);
-        caption(
-            &painter,
-            rect,
-            "f_r·cos θo lobe (drag to orbit) — blue wi, pink mirror, white normal".into(),
-        );
-    }
-
-    fn histograms(&mut self, ui: &mut egui::Ui, side: f32) {
-        let test = self.live_test();
-        let grid = self.results.expected.as_ref().map(|(g, _)| *g);
-        ui.horizontal(|ui| {
-            for (name, title) in [
-                ("observed", "observed n_i"),
-                ("expected", "expected e_i (integrator)"),
-                ("difference", "(n - e)/sqrt(e), ±4"),
-            ] {
-                ui.vertical(|ui| {
-                    ui.label(title);
-                    let (response, painter) = ui.allocate_painter(vec2(side, side), Sense::hover());
-                    let rect = response.rect;
-                    self.view_rects.insert(name, rect);
-                    painter.rect_filled(rect, 0.0, views::OUTSIDE);
-                    if let (Some(t), Some(grid)) = (&test, grid) {
-                        let h = &t.histogram;
-                        let max = h.count_scale();
-                        let residuals = h.residuals();
-                        let color = |i: usize| match name {
-                            _ if h.expected[i] <= 0.0 && h.observed[i] == 0 => views::OUTSIDE,
-                            "observed" => views::count_color(h.observed[i] as f64, max),
-                            "expected" => views::count_color(h.expected[i], max),
-                            _ => views::residual_color(residuals[i]),
-                        };
-                        views::paint_cells(&painter, rect, grid, &color);
-                    }
-                });
-            }
-        });
-        match &test {
-            Some(t) => {
-                let (text, color) = match &t.chi2 {
-                    Some(c) => (
-                        format!(
-                            "χ² = {:.1}, dof = {}, p = {:.3}: {} at α = {ALPHA} ({} samples in cells)",
-                            c.statistic,
-                            c.dof,
-                            c.p_value,
-                            if t.passed() {
-                                "consistent with f·cos"
-                            } else {
-                                "REJECTED"
-                            },
-                            t.samples
-                        ),
-                        if t.passed() {
-                            Color32::LIGHT_GREEN
-                        } else {
-                            Color32::LIGHT_RED
-                        },
-                    ),
-                    None => ("too few samples for a χ² test".into(), Color32::GRAY),
-                };
-                ui.colored_label(color, text);
-            }
-            None => {
-                ui.label("waiting for samples…");
-            }
         }
     }
 
@@ -777,21 +499,6 @@ impl ViewerApp {
         }
         Ok(files)
     }
-}
-
-/// A view's caption in its top-left corner, wrapped inside the view (a single line was cut
-/// off at narrow widths); returns where it was drawn.
-fn caption(painter: &egui::Painter, rect: Rect, text: String) -> Rect {
-    let galley = painter.layout(
-        text,
-        egui::FontId::proportional(11.0),
-        Color32::WHITE,
-        (rect.width() - 8.0).max(40.0),
-    );
-    let at = rect.left_top() + vec2(4.0, 4.0);
-    let drawn = Rect::from_min_size(at, galley.size());
-    painter.galley(at, galley, Color32::WHITE);
-    drawn
 }
 
 impl eframe::App for ViewerApp {
@@ -854,18 +561,55 @@ impl eframe::App for ViewerApp {
                     });
             });
         self.execute(&ctx, commands);
+        let mut commands = Vec::new();
         egui::CentralPanel::default().show(ui, |ui| {
             let avail = ui.available_size();
             let top = (avail.y * 0.58).min(avail.x * 0.5).max(120.0);
             ui.horizontal(|ui| {
-                self.disk_view(ui, top);
+                let texture = match self.style.background {
+                    Background::Fr => self.fr_texture.as_ref(),
+                    _ => self.leaf_texture.as_ref().or(self.fr_texture.as_ref()),
+                };
+                let tree = self.results.tree.as_ref().map(|t| &*t.0);
+                let scene = DiskScene {
+                    map: self.inputs.map,
+                    wi: self.wi(),
+                    texture,
+                    outlines: tree.filter(|t| self.style.outlines && t.map() == self.inputs.map),
+                    points: self
+                        .results
+                        .samples
+                        .as_ref()
+                        .filter(|_| self.style.points)
+                        .map(|s| s.points.as_slice()),
+                };
+                let disk = DiskView::ui(ui, top, &scene, &mut commands);
+                self.view_rects.insert("disk", disk.rect);
+                self.caption_rect = disk.caption;
                 let lobe_w = (ui.available_width()).max(120.0);
-                self.lobe_view(ui, vec2(lobe_w, top));
+                let wi = self.wi();
+                let lobe = LobeView::ui(
+                    ui,
+                    vec2(lobe_w, top),
+                    &mut self.camera,
+                    self.lobe.as_ref(),
+                    self.has_wgpu,
+                    wi,
+                );
+                self.view_rects.insert("lobe", lobe);
             });
             let rest = ui.available_height() - 44.0;
             let side = (rest).min((avail.x - 24.0) / 3.0).max(80.0);
-            self.histograms(ui, side);
+            let test = self.live_test();
+            let rects = HistogramsView::ui(ui, side, test.as_ref());
+            for (name, rect) in ["observed", "expected", "difference"]
+                .into_iter()
+                .zip(rects)
+            {
+                self.view_rects.insert(name, rect);
+            }
         });
+        self.execute(&ctx, commands);
         if !self.is_idle() {
             ctx.request_repaint_after(std::time::Duration::from_millis(50));
         }

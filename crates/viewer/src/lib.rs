@@ -10,11 +10,14 @@
 //! renders one frame offscreen (egui_kittest's wgpu renderer) and exits.
 
 pub mod app;
+pub mod central;
 pub mod export;
+pub mod launch;
 pub mod lobe;
 pub mod panels;
 pub mod screenshot;
 pub mod views;
 pub mod worker;
 
-pub use app::{Launch, Resolved, ViewerApp};
+pub use app::ViewerApp;
+pub use launch::{Launch, Resolved};

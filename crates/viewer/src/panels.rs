@@ -28,6 +28,8 @@ pub enum Command {
     Resubmit,
     /// A view option changed: draw the disk view's textures again.
     Restyle,
+    /// Move wi to the direction of this point of the tree's square (a drag on the disk view).
+    SetWiAt(glam::Vec2),
     /// Export every view and the raw maps into this folder.
     Export(PathBuf),
 }
@@ -60,7 +62,7 @@ pub struct Inputs {
     pub split_threshold: f64,
     /// Deepest level.
     pub max_depth: u8,
-    /// Whether the target-E[T] mode is on.
+    /// Whether the target-E\[T\] mode is on.
     pub use_target: bool,
     /// Its target.
     pub target_trials: f64,
@@ -256,7 +258,7 @@ impl IncidentPanel {
     }
 }
 
-/// The tree's build options: map, split threshold, depth, target E[T].
+/// The tree's build options: map, split threshold, depth, target E\[T\].
 pub struct TreePanel;
 
 impl TreePanel {

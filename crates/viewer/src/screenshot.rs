@@ -5,7 +5,8 @@
 //! without a GPU). [`windowed`] opens a real eframe window, waits for the work to finish,
 //! captures the window's framebuffer and closes it.
 
-use crate::app::{Resolved, ViewerApp};
+use crate::app::ViewerApp;
+use crate::launch::Resolved;
 use eframe::egui;
 use eframe::egui_wgpu;
 use std::path::{Path, PathBuf};
