@@ -314,22 +314,11 @@ impl PackedTree {
             budget_exhausted,
             ..TreeStats::default()
         };
-        let (mut boxes, mut v1s) = (0.0, 0.0);
-        for leaf in self.leaves() {
-            s.leaves += 1;
-            s.max_depth = s.max_depth.max(leaf.depth);
-            let d = usize::from(leaf.depth);
-            if s.depth_histogram.len() <= d {
-                s.depth_histogram.resize(d + 1, 0);
-            }
-            s.depth_histogram[d] += 1;
-            if leaf.live {
-                s.live_leaves += 1;
-                boxes += leaf.box_volume();
-                v1s += leaf.v1;
-            }
-        }
-        s.expected_trials = if v1s > 0.0 { boxes / v1s } else { 0.0 };
+        s.count_leaves(
+            self.leaves()
+                .into_iter()
+                .map(|l| (l.depth, l.live, l.box_volume(), l.v1)),
+        );
         s
     }
 

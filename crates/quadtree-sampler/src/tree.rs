@@ -98,6 +98,30 @@ pub struct TreeStats {
     pub budget_exhausted: bool,
 }
 
+impl TreeStats {
+    /// Counts the leaves — (depth, live, box volume, v1), in node order — into `leaves`,
+    /// `live_leaves`, `max_depth`, `depth_histogram` and E\[T\] = Σ box / Σ v1 over the live
+    /// ones: the one tally behind the build's statistics and the packed tree's.
+    pub(crate) fn count_leaves(&mut self, leaves: impl Iterator<Item = (u8, bool, f64, f64)>) {
+        let (mut boxes, mut v1s) = (0.0, 0.0);
+        for (depth, live, box_volume, v1) in leaves {
+            self.leaves += 1;
+            self.max_depth = self.max_depth.max(depth);
+            let d = usize::from(depth);
+            if self.depth_histogram.len() <= d {
+                self.depth_histogram.resize(d + 1, 0);
+            }
+            self.depth_histogram[d] += 1;
+            if live {
+                self.live_leaves += 1;
+                boxes += box_volume;
+                v1s += v1;
+            }
+        }
+        self.expected_trials = if v1s > 0.0 { boxes / v1s } else { 0.0 };
+    }
+}
+
 /// The seed's `Quadtree` over the square for one incident direction: an arena of nodes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Quadtree {
@@ -411,22 +435,10 @@ impl Quadtree {
             budget_exhausted: self.budget_exhausted,
             ..TreeStats::default()
         };
-        let (mut boxes, mut v1s) = (0.0, 0.0);
-        for (_, n) in self.leaves() {
-            s.leaves += 1;
-            s.max_depth = s.max_depth.max(n.depth);
-            let d = usize::from(n.depth);
-            if s.depth_histogram.len() <= d {
-                s.depth_histogram.resize(d + 1, 0);
-            }
-            s.depth_histogram[d] += 1;
-            if n.v1 > 0.0 {
-                s.live_leaves += 1;
-                boxes += n.box_volume();
-                v1s += n.v1;
-            }
-        }
-        s.expected_trials = if v1s > 0.0 { boxes / v1s } else { 0.0 };
+        s.count_leaves(
+            self.leaves()
+                .map(|(_, n)| (n.depth, n.v1 > 0.0, n.box_volume(), n.v1)),
+        );
         s
     }
 }
