@@ -17,7 +17,8 @@
 //! and every tree's structure. Each failure is its own [`BakeFileError`]; nothing panics,
 //! and no length in the file is trusted before the checksum has passed.
 
-use crate::baked::{BakeConfig, BakeGrid, BakedSampler, PhiDomain, Slice, Tables};
+use crate::bake_grid::{BakeGrid, PhiDomain};
+use crate::baked::{BakeConfig, BakedSampler, Slice, Tables};
 use crate::config::{BuildConfig, IntegrationRule};
 use crate::packed::PackedTree;
 use crate::warp_table::WarpTable;

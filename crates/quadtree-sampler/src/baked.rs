@@ -54,6 +54,8 @@
 //! lobe then smears between slices. The rotation above keeps sharp lobes sharp between
 //! slices and the mixture keeps the pdf exact.
 
+use crate::bake_grid::{BakeGrid, PhiDomain, isotropic_to_local, rotation_between_mirrors_xz};
+use crate::baked_views::{BakedAt, BrokenPdf};
 use crate::config::BuildConfig;
 use crate::error::BuildError;
 use crate::packed::PackedTree;
@@ -66,7 +68,6 @@ use brdf_core::geometry::{above_horizon, luminance, mirror};
 use brdf_core::math as m;
 use brdf_core::warp::sample_cosine_hemisphere;
 use brdf_core::{Brdf, BrdfSample, DirectionError, ParamSet, PeakHints, Symmetry};
-use core::f64::consts::{FRAC_PI_2, PI, TAU};
 use core::fmt;
 use core::sync::atomic::{AtomicU64, Ordering};
 use glam::{DMat3, DQuat, DVec3, Vec2, Vec3};
@@ -254,260 +255,6 @@ impl From<DirectionError> for BakedError {
     }
 }
 
-/// The part of the φi circle a grid covers, from the model's declared symmetries.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum PhiDomain {
-    /// Isotropic: one row, φi = 0; any wi is rotated about z onto it.
-    Rotation,
-    /// Mirror-symmetric in x and y: φi ∈ [0°, 90°] (wi reflected into x, y ≥ 0).
-    Quadrant,
-    /// Mirror-symmetric in y only: φi ∈ [0°, 180°] (wi reflected into y ≥ 0).
-    UpperHalf,
-    /// Mirror-symmetric in x only: φi ∈ [−90°, 90°] (wi reflected into x ≥ 0).
-    RightHalf,
-    /// No symmetry: the whole circle, periodic.
-    Circle,
-}
-
-impl PhiDomain {
-    /// The domain a model's symmetries allow.
-    #[must_use]
-    pub fn of(s: Symmetry) -> Self {
-        match (s.isotropic, s.mirror_x, s.mirror_y) {
-            (true, _, _) => Self::Rotation,
-            (false, true, true) => Self::Quadrant,
-            (false, false, true) => Self::UpperHalf,
-            (false, true, false) => Self::RightHalf,
-            (false, false, false) => Self::Circle,
-        }
-    }
-
-    /// Its φ interval in radians (`Circle`: [0, 2π), periodic).
-    fn range(self) -> (f64, f64) {
-        match self {
-            Self::Rotation => (0.0, 0.0),
-            Self::Quadrant => (0.0, FRAC_PI_2),
-            Self::UpperHalf => (0.0, PI),
-            Self::RightHalf => (-FRAC_PI_2, FRAC_PI_2),
-            Self::Circle => (0.0, TAU),
-        }
-    }
-
-    /// The orthogonal map F (a rotation about z or reflections) that brings `w` into the
-    /// domain; F is its own kind of symmetry of f_r, so f_r(F wi, F wo) = f_r(wi, wo).
-    fn fold(self, w: DVec3) -> DMat3 {
-        let sx = if w.x < 0.0 { -1.0 } else { 1.0 };
-        let sy = if w.y < 0.0 { -1.0 } else { 1.0 };
-        match self {
-            Self::Rotation => {
-                let r = m::sqrt(w.x * w.x + w.y * w.y);
-                if r == 0.0 {
-                    DMat3::IDENTITY
-                } else {
-                    // The rotation about z by −φ, from cos φ and sin φ without trigonometry.
-                    let (c, s) = (w.x / r, w.y / r);
-                    DMat3::from_cols(DVec3::new(c, -s, 0.0), DVec3::new(s, c, 0.0), DVec3::Z)
-                }
-            }
-            Self::Quadrant => DMat3::from_diagonal(DVec3::new(sx, sy, 1.0)),
-            Self::UpperHalf => DMat3::from_diagonal(DVec3::new(1.0, sy, 1.0)),
-            Self::RightHalf => DMat3::from_diagonal(DVec3::new(sx, 1.0, 1.0)),
-            Self::Circle => DMat3::IDENTITY,
-        }
-    }
-}
-
-/// The grid of incident directions of a bake.
-#[derive(Clone, Debug, PartialEq)]
-pub struct BakeGrid {
-    domain: PhiDomain,
-    /// θi of each row, radians, uniform from 0 to [`GRID_THETA_MAX_DEG`].
-    thetas: Vec<f64>,
-    /// φi of each column, radians.
-    phis: Vec<f64>,
-}
-
-impl BakeGrid {
-    /// The grid for a model of these symmetries.
-    pub fn new(symmetry: Symmetry, theta_steps: u16, phi_steps: u16) -> Result<Self, BakeError> {
-        if theta_steps < 2 {
-            return Err(BakeError::ThetaSteps(theta_steps));
-        }
-        let domain = PhiDomain::of(symmetry);
-        let t_max = GRID_THETA_MAX_DEG.to_radians();
-        let nt = usize::from(theta_steps);
-        let thetas = (0..nt)
-            .map(|i| t_max * i as f64 / (nt - 1) as f64)
-            .collect();
-        let (lo, hi) = domain.range();
-        let phis = match domain {
-            PhiDomain::Rotation => alloc::vec![0.0],
-            PhiDomain::Circle => {
-                if phi_steps < 3 {
-                    return Err(BakeError::PhiSteps {
-                        got: phi_steps,
-                        min: 3,
-                    });
-                }
-                let n = usize::from(phi_steps);
-                (0..n).map(|j| TAU * j as f64 / n as f64).collect()
-            }
-            _ => {
-                if phi_steps < 2 {
-                    return Err(BakeError::PhiSteps {
-                        got: phi_steps,
-                        min: 2,
-                    });
-                }
-                let n = usize::from(phi_steps);
-                (0..n)
-                    .map(|j| lo + (hi - lo) * j as f64 / (n - 1) as f64)
-                    .collect()
-            }
-        };
-        let grid = Self {
-            domain,
-            thetas,
-            phis,
-        };
-        if grid.len() > MAX_TREES {
-            return Err(BakeError::TooManyTrees(grid.len()));
-        }
-        Ok(grid)
-    }
-
-    /// The folded φ range this grid covers.
-    #[must_use]
-    pub fn domain(&self) -> PhiDomain {
-        self.domain
-    }
-
-    /// θi of the rows, degrees.
-    #[must_use]
-    pub fn thetas_deg(&self) -> Vec<f64> {
-        self.thetas.iter().map(|t| t.to_degrees()).collect()
-    }
-
-    /// φi of the columns, degrees.
-    #[must_use]
-    pub fn phis_deg(&self) -> Vec<f64> {
-        self.phis.iter().map(|p| p.to_degrees()).collect()
-    }
-
-    /// Number of trees (rows × columns).
-    #[must_use]
-    pub fn len(&self) -> usize {
-        self.thetas.len() * self.phis.len()
-    }
-
-    /// Whether the grid holds no tree (never, for a grid [`BakeGrid::new`] made).
-    #[must_use]
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
-    /// The incident direction of tree `k` (row-major: θ row × columns + φ column), as the
-    /// unit f32 vector its tree was built for.
-    #[must_use]
-    pub fn direction(&self, k: usize) -> Vec3 {
-        let (t, p) = (
-            self.thetas[k / self.phis.len()],
-            self.phis[k % self.phis.len()],
-        );
-        let (st, ct) = (m::sin(t), m::cos(t));
-        let (sp, cp) = (m::sin(p), m::cos(p));
-        DVec3::new(st * cp, st * sp, ct).as_vec3().normalize()
-    }
-
-    /// θi and φi of tree `k`, degrees.
-    #[must_use]
-    pub fn angles_deg(&self, k: usize) -> (f64, f64) {
-        (
-            self.thetas[k / self.phis.len()].to_degrees(),
-            self.phis[k % self.phis.len()].to_degrees(),
-        )
-    }
-
-    /// The neighbouring trees of a folded direction `w` (unit, z > 0) and their weights
-    /// (summing to 1; linear in θ, bilinear in (θ, φ)); unused entries have weight 0.
-    #[inline]
-    fn neighbours(&self, w: DVec3) -> [(usize, f64); 4] {
-        let theta = fast_acos(w.z);
-        let nt = self.thetas.len();
-        let dt = self.thetas[1] - self.thetas[0];
-        let t = (theta / dt).clamp(0.0, (nt - 1) as f64);
-        let i = (t as usize).min(nt - 2);
-        let ft = (t - i as f64).clamp(0.0, 1.0);
-        let np = self.phis.len();
-        let (j0, j1, fp) = match self.domain {
-            PhiDomain::Rotation => (0, 0, 0.0),
-            PhiDomain::Circle => {
-                let dp = TAU / np as f64;
-                let mut phi = m::atan2(w.y, w.x);
-                if phi < 0.0 {
-                    phi += TAU;
-                }
-                let p = phi / dp;
-                let j = (p as usize).min(np - 1);
-                (j, (j + 1) % np, (p - j as f64).clamp(0.0, 1.0))
-            }
-            _ => {
-                let (lo, hi) = self.domain.range();
-                let phi = m::atan2(w.y, w.x).clamp(lo, hi);
-                let p = ((phi - lo) / (hi - lo) * (np - 1) as f64).clamp(0.0, (np - 1) as f64);
-                let j = (p as usize).min(np - 2);
-                (j, j + 1, (p - j as f64).clamp(0.0, 1.0))
-            }
-        };
-        let at = |r: usize, c: usize| r * np + c;
-        [
-            (at(i, j0), (1.0 - ft) * (1.0 - fp)),
-            (at(i + 1, j0), ft * (1.0 - fp)),
-            (at(i, j1), (1.0 - ft) * fp),
-            (at(i + 1, j1), ft * fp),
-        ]
-    }
-}
-
-/// acos(x) for x ∈ [−1, 1] to within 7·10⁻⁵ rad (Abramowitz & Stegun 4.4.45), without a
-/// libm call. The neighbour weights may be any function of wi that `sample` and `pdf` share
-/// (the mixture is exact whatever they are), so its error costs nothing but a shift of the
-/// weights by less than 0.01 % of a grid step.
-#[inline]
-fn fast_acos(x: f64) -> f64 {
-    let a = x.abs().min(1.0);
-    let p =
-        m::sqrt(1.0 - a) * (1.570_728_8 + a * (-0.212_114_4 + a * (0.074_261_0 - 0.018_729_3 * a)));
-    if x >= 0.0 { p } else { PI - p }
-}
-
-/// The rotation about y that carries the mirror direction of `from` onto that of `to`, both
-/// in the xz-plane with x ≥ 0 (an isotropic grid's directions, and a wi folded onto φ = 0):
-/// the rotation by θ_from − θ_to, as its (cosine, sine), from the directions' sines and
-/// cosines without trigonometry. Its matrix, columns (c, 0, −s), (0, 1, 0), (s, 0, c), equals
-/// `DQuat::from_rotation_arc` of the two mirrors (a test says so), at a fraction of its cost:
-/// it runs for every neighbour of every `sample` and `pdf`. Both are unit vectors (to
-/// rounding): their x and z are their polar angles' sine and cosine.
-#[inline]
-fn rotation_between_mirrors_xz(from: DVec3, to: DVec3) -> (f64, f64) {
-    let (sf, cf) = (from.x, from.z);
-    let (st, ct) = (to.x, to.z);
-    (cf * ct + sf * st, sf * ct - cf * st)
-}
-
-/// R_z(φ)·R_y(α) from (cos φ, sin φ) and (cos α, sin α), written out: an isotropic
-/// neighbour's map from its tree's frame to the local frame (the rotation between the
-/// mirrors, then the unfolding rotation about z). Equal to the product of the two matrices
-/// (a test says so) at a quarter of its multiplications.
-#[inline]
-fn isotropic_to_local((c, s): (f64, f64), (ca, sa): (f64, f64)) -> DMat3 {
-    DMat3::from_cols(
-        DVec3::new(c * ca, s * ca, -sa),
-        DVec3::new(-s, c, 0.0),
-        DVec3::new(c * sa, s * sa, ca),
-    )
-}
-
 /// One grid tree: its direction, rejection layout and warp proxy.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Slice {
@@ -597,24 +344,24 @@ pub(crate) struct Tables {
 /// ```
 #[derive(Debug)]
 pub struct BakedSampler {
-    brdf: Arc<dyn Brdf>,
-    config: BakeConfig,
-    grid: BakeGrid,
-    forward: Tables,
+    pub(crate) brdf: Arc<dyn Brdf>,
+    pub(crate) config: BakeConfig,
+    pub(crate) grid: BakeGrid,
+    pub(crate) forward: Tables,
     /// The adjoint's trees, for a non-reciprocal model's [`Role::Radiance`].
-    adjoint: Option<Tables>,
-    mode: BakedMode,
-    violations: AtomicU64,
-    gave_up: AtomicU64,
+    pub(crate) adjoint: Option<Tables>,
+    pub(crate) mode: BakedMode,
+    pub(crate) violations: AtomicU64,
+    pub(crate) gave_up: AtomicU64,
 }
 
 /// One neighbour of a query: its tree, weight, and the map from its tree's frame to the
 /// caller's local frame (unfold ∘ rotation onto the query's mirror direction).
 #[derive(Clone, Copy, Debug)]
-struct Component {
-    slice: usize,
-    weight: f64,
-    to_local: DMat3,
+pub(crate) struct Component {
+    pub(crate) slice: usize,
+    pub(crate) weight: f64,
+    pub(crate) to_local: DMat3,
 }
 
 impl BakedSampler {
@@ -813,7 +560,7 @@ impl BakedSampler {
 
     /// The components of the mixture at a given (checked, unit) direction.
     #[inline(always)]
-    fn components(&self, tables: &Tables, given: Vec3) -> ([Component; 4], usize) {
+    pub(crate) fn components(&self, tables: &Tables, given: Vec3) -> ([Component; 4], usize) {
         let g = given.as_dvec3();
         let mut out = [Component {
             slice: 0,
@@ -826,7 +573,7 @@ impl BakedSampler {
         // trigonometry) onto (sin θ, 0, cos θ); each neighbour's map to the local frame is the
         // rotation about y between the two mirrors, then about z back by φ, written out.
         // Otherwise: the domain's fold, and the rotation arc between the mirrors.
-        let iso = self.grid.domain == PhiDomain::Rotation;
+        let iso = self.grid.domain() == PhiDomain::Rotation;
         let (gc, cs, unfold, mc) = if iso {
             let r = m::sqrt(g.x * g.x + g.y * g.y);
             let cs = if r > 0.0 {
@@ -837,7 +584,7 @@ impl BakedSampler {
             };
             (DVec3::new(r, 0.0, g.z), cs, DMat3::IDENTITY, DVec3::Z)
         } else {
-            let fold = self.grid.domain.fold(g);
+            let fold = self.grid.domain().fold(g);
             let gc = fold * g;
             let mc = DVec3::new(-gc.x, -gc.y, gc.z).normalize();
             (gc, (1.0, 0.0), fold.transpose(), mc)
@@ -880,7 +627,7 @@ impl BakedSampler {
     /// is the one [`WarpTable::density`] would find wherever `wo` maps back into that leaf
     /// (the same stored number), so only a point that rounding moved out of it descends.
     #[inline]
-    fn component_pdf(
+    pub(crate) fn component_pdf(
         &self,
         tables: &Tables,
         adjoint: bool,
@@ -914,7 +661,7 @@ impl BakedSampler {
     /// need only be finite and non-zero: it is normalised here in f64, so that the pdf a
     /// sample carries and the pdf of the same f32 vector asked for later are bit-identical
     /// (renormalising in f32 could move a direction on a leaf's edge into its neighbour).
-    fn pdf_unit(&self, role: Role, given: Vec3, sampled: Vec3) -> f32 {
+    pub(crate) fn pdf_unit(&self, role: Role, given: Vec3, sampled: Vec3) -> f32 {
         let (tables, adjoint) = self.tables_for(role);
         let (comps, n) = self.components(tables, given);
         self.pdf_of(tables, adjoint, &comps[..n], sampled, None)
@@ -923,7 +670,7 @@ impl BakedSampler {
     /// The mixture's density at `sampled` from its components (the one expression behind
     /// `pdf` and the pdf a sample carries; `drawn`: the component and warp leaf a sample
     /// came from, which changes how its density is found, never its value).
-    fn pdf_of(
+    pub(crate) fn pdf_of(
         &self,
         tables: &Tables,
         adjoint: bool,
@@ -976,7 +723,7 @@ impl BakedSampler {
         Ok(self.sample_unit(role, given, uc, u, rng))
     }
 
-    fn sample_unit<R: Rng + ?Sized>(
+    pub(crate) fn sample_unit<R: Rng + ?Sized>(
         &self,
         role: Role,
         given: Vec3,
@@ -1179,213 +926,5 @@ impl BakedSampler {
     #[must_use]
     pub fn broken_pdf_for_testing(self: Arc<Self>) -> BrokenPdf {
         BrokenPdf(self)
-    }
-}
-
-/// A [`BakedSampler`] at one incident direction, as a [`crate::DirectionSampler`].
-#[derive(Clone, Copy, Debug)]
-pub struct BakedAt<'a> {
-    pub(crate) baked: &'a BakedSampler,
-    pub(crate) wi: Vec3,
-}
-
-impl crate::DirectionSampler for BakedAt<'_> {
-    fn name(&self) -> &'static str {
-        match self.baked.mode {
-            BakedMode::Rejection => "baked rejection",
-            BakedMode::Warp => "baked warp",
-        }
-    }
-
-    fn sample_with(&self, uc: f32, u: Vec2, rng: &mut dyn Rng) -> Option<Sample> {
-        self.baked
-            .sample_unit(Role::Importance, self.wi, uc, u, rng)
-    }
-
-    fn pdf(&self, wo: Vec3) -> f32 {
-        if !wo.is_finite() {
-            return 0.0;
-        }
-        self.baked.pdf_unit(Role::Importance, self.wi, wo)
-    }
-}
-
-/// A deliberately wrong sampler for negative controls: samples like its [`BakedSampler`]
-/// but reports a pdf that leaves out the first neighbour's share (renormalised over the
-/// others), as a mixture bug would.
-#[doc(hidden)]
-#[derive(Debug)]
-pub struct BrokenPdf(Arc<BakedSampler>);
-
-impl BrokenPdf {
-    /// The wrong pdf at one wi.
-    #[must_use]
-    pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
-        let b = &self.0;
-        let (mut comps, n) = b.components(&b.forward, wi);
-        if n < 2 {
-            return b.pdf_unit(Role::Importance, wi, wo);
-        }
-        // The mixture's own expression over the other neighbours, renormalised.
-        let rest: f64 = comps[1..n].iter().map(|c| c.weight).sum();
-        for c in &mut comps[1..n] {
-            c.weight /= rest;
-        }
-        b.pdf_of(&b.forward, false, &comps[1..n], wo, None)
-    }
-
-    /// The sampler at one wi with the wrong pdf.
-    #[must_use]
-    pub fn at(&self, wi: Vec3) -> BrokenAt<'_> {
-        BrokenAt {
-            broken: self,
-            wi: wi.normalize(),
-        }
-    }
-}
-
-/// [`BrokenPdf`] at one wi.
-#[doc(hidden)]
-#[derive(Debug)]
-pub struct BrokenAt<'a> {
-    broken: &'a BrokenPdf,
-    wi: Vec3,
-}
-
-impl crate::DirectionSampler for BrokenAt<'_> {
-    fn name(&self) -> &'static str {
-        "broken baked"
-    }
-
-    fn sample_with(&self, uc: f32, u: Vec2, rng: &mut dyn Rng) -> Option<Sample> {
-        let s = self
-            .broken
-            .0
-            .sample_unit(Role::Importance, self.wi, uc, u, rng)?;
-        let pdf = self.pdf(s.wo);
-        (pdf > 0.0).then(|| Sample {
-            pdf,
-            weight: s.f * (s.wo.z / pdf),
-            ..s
-        })
-    }
-
-    fn pdf(&self, wo: Vec3) -> f32 {
-        self.broken.pdf(self.wi, wo)
-    }
-}
-
-/// A [`BakedSampler`] in a world-space shading frame, like pbrt's `BSDF` around a `BxDF`:
-/// directions in and out are world vectors; the frame is a normal and an optional tangent
-/// (the anisotropy axis x). Cheap to make per shading point.
-#[derive(Clone, Copy, Debug)]
-pub struct WorldBsdf<'a> {
-    baked: &'a BakedSampler,
-    frame: brdf_core::Frame,
-}
-
-impl<'a> WorldBsdf<'a> {
-    /// A shading point with normal `n` and, for anisotropic models, tangent `t` (made
-    /// orthogonal to `n`); without a tangent any stable one is chosen.
-    pub fn new(baked: &'a BakedSampler, n: Vec3, t: Option<Vec3>) -> Result<Self, BakedError> {
-        let frame = match t {
-            Some(t) => brdf_core::Frame::from_normal_tangent(n, t)?,
-            None => brdf_core::Frame::from_normal(n)?,
-        };
-        Ok(Self { baked, frame })
-    }
-
-    /// The shading frame.
-    #[must_use]
-    pub fn frame(&self) -> &brdf_core::Frame {
-        &self.frame
-    }
-
-    /// [`BakedSampler::sample_as`] in world directions (the sample's `wo` is world too).
-    pub fn sample<R: Rng + ?Sized>(
-        &self,
-        role: Role,
-        given: Vec3,
-        uc: f32,
-        u: Vec2,
-        rng: &mut R,
-    ) -> Result<Option<Sample>, BakedError> {
-        let s = self
-            .baked
-            .sample_as(role, self.frame.to_local(given), uc, u, rng)?;
-        Ok(s.map(|s| Sample {
-            wo: self.frame.to_world(s.wo),
-            ..s
-        }))
-    }
-
-    /// [`BakedSampler::pdf_as`] in world directions, **per unit solid angle**.
-    pub fn pdf(&self, role: Role, given: Vec3, sampled: Vec3) -> Result<f32, BakedError> {
-        self.baked.pdf_as(
-            role,
-            self.frame.to_local(given),
-            self.frame.to_local(sampled),
-        )
-    }
-
-    /// [`BakedSampler::eval_as`] in world directions (0 below the surface).
-    pub fn eval(&self, role: Role, given: Vec3, sampled: Vec3) -> Result<Vec3, BakedError> {
-        self.baked.eval_as(
-            role,
-            self.frame.to_local(given),
-            self.frame.to_local(sampled),
-        )
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The isotropic fast path is the minimal rotation between the two mirror directions.
-    #[test]
-    fn fast_acos_is_within_its_bound() {
-        for k in 0..=2000 {
-            let x = -1.0 + f64::from(k) / 1000.0;
-            assert!((fast_acos(x) - x.acos()).abs() < 7e-5, "{x}");
-        }
-    }
-
-    #[test]
-    fn the_xz_rotation_is_the_rotation_arc_of_the_mirrors() {
-        for (a, b) in [
-            (0.0f64, 0.3f64),
-            (0.3, 0.0),
-            (1.2, 0.4),
-            (0.05, 1.55),
-            (1.55, 1.5),
-            (0.7, 0.7),
-        ] {
-            let from = DVec3::new(a.sin(), 0.0, a.cos());
-            let to = DVec3::new(b.sin(), 0.0, b.cos());
-            let m = |w: DVec3| DVec3::new(-w.x, -w.y, w.z);
-            let arc = DMat3::from_quat(DQuat::from_rotation_arc(m(from), m(to)));
-            let (ca, sa) = rotation_between_mirrors_xz(from, to);
-            let fast =
-                DMat3::from_cols(DVec3::new(ca, 0.0, -sa), DVec3::Y, DVec3::new(sa, 0.0, ca));
-            assert!((fast * m(from) - m(to)).length() < 1e-12);
-            for v in [DVec3::X, DVec3::Y, DVec3::Z, DVec3::new(0.3, -0.4, 0.866)] {
-                assert!((arc * v - fast * v).length() < 1e-12, "{a} {b} {v}");
-            }
-            // The isotropic neighbour's map is the unfolding (the fold's transpose) after it
-            // (at θ = 0 the fold is the identity, and so φ is 0).
-            let phis: &[f64] = if to.x > 0.0 {
-                &[0.0, 0.4, 2.0, -1.3, 3.1]
-            } else {
-                &[0.0]
-            };
-            for &phi in phis {
-                let g = DVec3::new(phi.cos() * to.x, phi.sin() * to.x, to.z);
-                let unfold = PhiDomain::Rotation.fold(g).transpose();
-                let d = unfold * fast - isotropic_to_local((phi.cos(), phi.sin()), (ca, sa));
-                let err = d.x_axis.length() + d.y_axis.length() + d.z_axis.length();
-                assert!(err < 1e-12, "{a} {b} {phi}: {err}");
-            }
-        }
     }
 }

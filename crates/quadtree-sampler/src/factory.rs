@@ -3,7 +3,8 @@
 //! plus the statistics a caller reports (tree counts, albedo, bound violations). The CLI, the
 //! viewer's worker and the benches build their samplers here and nowhere else.
 
-use crate::baked::{BakedAt, BakedSampler};
+use crate::baked::BakedSampler;
+use crate::baked_views::BakedAt;
 use crate::config::BuildConfig;
 use crate::error::BuildError;
 use crate::sampler::{Baseline, BaselineSampler, DirectionSampler, QuadtreeSampler, Sample};

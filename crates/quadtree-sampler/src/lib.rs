@@ -64,7 +64,9 @@ extern crate alloc;
 extern crate std;
 
 mod bake_file;
+mod bake_grid;
 mod baked;
+mod baked_views;
 mod bound;
 pub mod chart;
 pub mod colormap;
@@ -85,11 +87,12 @@ mod warp_table;
 pub use bake_file::{BAKE_FORMAT_VERSION, BAKE_MAGIC, BakeFileError};
 #[cfg(feature = "std")]
 pub use bake_file::{BakeIoError, temporary_beside, write_atomically};
+pub use bake_grid::{BakeGrid, PhiDomain};
 pub use baked::{
-    BakeConfig, BakeError, BakeGrid, BakedAt, BakedError, BakedMode, BakedSampler, BrokenAt,
-    BrokenPdf, DEFAULT_BAKE_NODE_BUDGET, DEFAULT_DEFENSIVE, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS,
-    GRID_THETA_MAX_DEG, MAX_TREES, PhiDomain, Role, WorldBsdf,
+    BakeConfig, BakeError, BakedError, BakedMode, BakedSampler, DEFAULT_BAKE_NODE_BUDGET,
+    DEFAULT_DEFENSIVE, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, GRID_THETA_MAX_DEG, MAX_TREES, Role,
 };
+pub use baked_views::{BakedAt, BrokenAt, BrokenPdf, WorldBsdf};
 pub use brdf_core;
 pub use config::{BuildConfig, EVALUATIONS_PER_NODE, IntegrationRule};
 pub use encoder::refleja;
