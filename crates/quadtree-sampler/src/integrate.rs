@@ -118,17 +118,8 @@ impl Peak {
 }
 
 /// ∫ f over `rect` ∩ disk with f given per direction (the square measure dx dy), by the map's
-/// chart rule (one application, no adaptivity). `f` returns f_r's luminance.
-pub fn integrate_once(
-    map: DiskMap,
-    rect: &Rect,
-    rule: &UnitRule,
-    f: &impl Fn(DVec3) -> f64,
-) -> f64 {
-    integrate_once_peak(map, rect, rule, f, &mut Peak::default())
-}
-
-/// [`integrate_once`], also recording the largest values met in `peak`.
+/// chart rule (one application, no adaptivity), recording the largest values met in `peak`.
+/// `f` returns f_r's luminance.
 pub fn integrate_once_peak(
     map: DiskMap,
     rect: &Rect,
@@ -279,60 +270,6 @@ fn triangle(rule: &UnitRule, v0: DVec2, v1: DVec2, v2: DVec2, h: &impl Fn(f64, f
     total * det
 }
 
-/// Adaptive ∫ f over `rect` ∩ disk: compares one application of the rule with the sum over
-/// the four quadrants and recurses where they differ by more than `tol` (each quadrant with
-/// half the tolerance), at most `depth` levels. Returns the refined estimate.
-pub fn integrate_adaptive(
-    map: DiskMap,
-    rect: &Rect,
-    rule: &UnitRule,
-    tol: f64,
-    depth: u32,
-    f: &impl Fn(DVec3) -> f64,
-) -> f64 {
-    integrate_adaptive_peak(map, rect, rule, tol, depth, f, &mut Peak::default())
-}
-
-/// [`integrate_adaptive`], also recording the largest values met in `peak`.
-pub fn integrate_adaptive_peak(
-    map: DiskMap,
-    rect: &Rect,
-    rule: &UnitRule,
-    tol: f64,
-    depth: u32,
-    f: &impl Fn(DVec3) -> f64,
-    peak: &mut Peak,
-) -> f64 {
-    let coarse = integrate_once_peak(map, rect, rule, f, peak);
-    refine(map, rect, coarse, rule, tol, depth, f, peak)
-}
-
-/// The refinement of [`integrate_adaptive_peak`] from an already computed one-application
-/// estimate `coarse` of `rect` (for callers that needed it first, to set `tol`).
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn refine(
-    map: DiskMap,
-    rect: &Rect,
-    coarse: f64,
-    rule: &UnitRule,
-    tol: f64,
-    depth: u32,
-    f: &impl Fn(DVec3) -> f64,
-    peak: &mut Peak,
-) -> f64 {
-    let quads = rect.quadrants();
-    let parts = quads.map(|q| integrate_once_peak(map, &q, rule, f, peak));
-    let fine: f64 = parts.iter().sum();
-    if depth == 0 || (fine - coarse).abs() <= tol {
-        return fine;
-    }
-    quads
-        .iter()
-        .zip(parts)
-        .map(|(q, c)| refine(map, q, c, rule, 0.5 * tol, depth - 1, f, peak))
-        .sum()
-}
-
 /// One application of the rule over a cell of an adaptive integration, remembered together
 /// with its quadrants' cells once they are computed.
 ///
@@ -476,6 +413,74 @@ mod tests {
     use super::*;
     use crate::chart::tests::nodes;
     use core::f64::consts::PI;
+
+    // The plain (non-memoised) integrations: the references the build's memoised one is
+    // held to, bit for bit, and the rules' own checks.
+
+    /// ∫ f over `rect` ∩ disk with f given per direction (the square measure dx dy), by the map's
+    /// chart rule (one application, no adaptivity). `f` returns f_r's luminance.
+    fn integrate_once(
+        map: DiskMap,
+        rect: &Rect,
+        rule: &UnitRule,
+        f: &impl Fn(DVec3) -> f64,
+    ) -> f64 {
+        integrate_once_peak(map, rect, rule, f, &mut Peak::default())
+    }
+
+    /// Adaptive ∫ f over `rect` ∩ disk: compares one application of the rule with the sum over
+    /// the four quadrants and recurses where they differ by more than `tol` (each quadrant with
+    /// half the tolerance), at most `depth` levels. Returns the refined estimate.
+    fn integrate_adaptive(
+        map: DiskMap,
+        rect: &Rect,
+        rule: &UnitRule,
+        tol: f64,
+        depth: u32,
+        f: &impl Fn(DVec3) -> f64,
+    ) -> f64 {
+        integrate_adaptive_peak(map, rect, rule, tol, depth, f, &mut Peak::default())
+    }
+
+    /// `integrate_adaptive`, also recording the largest values met in `peak`.
+    fn integrate_adaptive_peak(
+        map: DiskMap,
+        rect: &Rect,
+        rule: &UnitRule,
+        tol: f64,
+        depth: u32,
+        f: &impl Fn(DVec3) -> f64,
+        peak: &mut Peak,
+    ) -> f64 {
+        let coarse = integrate_once_peak(map, rect, rule, f, peak);
+        refine(map, rect, coarse, rule, tol, depth, f, peak)
+    }
+
+    /// The refinement of `integrate_adaptive_peak` from an already computed one-application
+    /// estimate `coarse` of `rect` (for callers that needed it first, to set `tol`).
+    #[allow(clippy::too_many_arguments)]
+    fn refine(
+        map: DiskMap,
+        rect: &Rect,
+        coarse: f64,
+        rule: &UnitRule,
+        tol: f64,
+        depth: u32,
+        f: &impl Fn(DVec3) -> f64,
+        peak: &mut Peak,
+    ) -> f64 {
+        let quads = rect.quadrants();
+        let parts = quads.map(|q| integrate_once_peak(map, &q, rule, f, peak));
+        let fine: f64 = parts.iter().sum();
+        if depth == 0 || (fine - coarse).abs() <= tol {
+            return fine;
+        }
+        quads
+            .iter()
+            .zip(parts)
+            .map(|(q, c)| refine(map, q, c, rule, 0.5 * tol, depth - 1, f, peak))
+            .sum()
+    }
 
     /// ∫ 1 over the disk = π (orthographic); over the square = 4 (concentric); ∫ z = 2π/3 on the
     /// disk; the sums over any dyadic level must reproduce them to near machine precision.
