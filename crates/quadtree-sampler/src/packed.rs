@@ -264,7 +264,7 @@ impl PackedTree {
             stats: TreeStats::default(),
         };
         packed.index_rim();
-        packed.stats = packed.count(tree.stats().budget_exhausted);
+        packed.stats = packed.count(tree.budget_exhausted());
         packed
     }
 

@@ -426,6 +426,12 @@ impl Quadtree {
         }
     }
 
+    /// Whether the node budget stopped a split.
+    #[must_use]
+    pub fn budget_exhausted(&self) -> bool {
+        self.budget_exhausted
+    }
+
     /// Counts: nodes, leaves, depths, bytes, E\[T\].
     #[must_use]
     pub fn stats(&self) -> TreeStats {
