@@ -228,13 +228,8 @@ impl fmt::Display for SuiteReport {
 
 /// What a suite reports as it runs (for progress, pictures, logs).
 pub enum Event<'a> {
-    /// A χ² test finished; its cells and masses are in `validation`.
-    Tested {
-        /// The test.
-        outcome: &'a TestOutcome,
-        /// Its set-up.
-        validation: &'a Validation,
-    },
+    /// A χ² test finished (its histogram holds the cells and their masses).
+    Tested(&'a TestOutcome),
     /// The mean-weight test at incident direction `index` (of `of`) starts.
     WeighingStarts {
         /// Which incident direction, from 0.
@@ -303,10 +298,7 @@ where
                 report,
                 seconds: t0.elapsed().as_secs_f64(),
             };
-            on_event(Event::Tested {
-                outcome: &outcome,
-                validation: &v,
-            })?;
+            on_event(Event::Tested(&outcome))?;
             tests.push(outcome);
         }
         if settings.mean_weight {
