@@ -23,12 +23,17 @@ pub struct Histogram {
 impl Histogram {
     /// A histogram of `observed` counts against cell integrals `mass` (same length as the
     /// grid), with the expectation m · I_i / Σ I for m = the counts' sum: what a live view
-    /// of samples as they arrive compares with (no own-pdf expectation).
+    /// of samples as they arrive compares with (no own-pdf expectation). Masses whose total
+    /// is not positive and finite expect nothing anywhere (0, never NaN).
     #[must_use]
     pub fn of_counts(grid: CellGrid, observed: Vec<u64>, mass: Vec<f64>) -> Self {
         let m = observed.iter().sum::<u64>() as f64;
         let total: f64 = mass.iter().sum();
-        let expected = mass.iter().map(|x| m * x / total).collect();
+        let expected = if total > 0.0 && total.is_finite() {
+            mass.iter().map(|x| m * x / total).collect()
+        } else {
+            vec![0.0; mass.len()]
+        };
         Self {
             grid,
             observed,
@@ -118,5 +123,8 @@ mod tests {
         assert!((r[0] - (30.0 - 30.75) / 30.75f64.sqrt()).abs() < 1e-15);
         assert_eq!((r[2], r[3]), (0.0, f64::INFINITY));
         assert_eq!(h.count_scale(), 30.75);
+        let empty = Histogram::of_counts(grid, vec![1, 0, 0, 0], vec![0.0; 4]);
+        assert_eq!(empty.expected, vec![0.0; 4]);
+        assert_eq!(empty.residuals()[0], f64::INFINITY);
     }
 }

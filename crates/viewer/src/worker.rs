@@ -118,8 +118,8 @@ pub struct LobeGrid {
     pub rings: usize,
     /// Sectors in azimuth about the pole (columns).
     pub sectors: usize,
-    /// The grid's pole, local frame: where f·cos peaks.
-    pub pole: Vec3,
+    /// The grid's frame: its normal is the pole, where f·cos peaks (local frame).
+    pub frame: brdf_core::Frame,
     /// Y(f_r)·cos θ, row-major, (rings + 1) × sectors.
     pub radius: Vec<f32>,
 }
@@ -131,9 +131,8 @@ impl LobeGrid {
         let t = i as f32 / self.rings as f32;
         let psi = core::f32::consts::PI * t * t;
         let phi = core::f32::consts::TAU * j as f32 / self.sectors as f32;
-        let frame = brdf_core::Frame::from_normal(self.pole)
-            .unwrap_or_else(|_| brdf_core::Frame::from_normal(Vec3::Z).expect("the normal"));
-        frame.to_world(brdf_core::geometry::spherical_direction(psi, phi))
+        self.frame
+            .to_world(brdf_core::geometry::spherical_direction(psi, phi))
     }
 }
 
@@ -574,10 +573,14 @@ pub fn lobe_grid(brdf: &dyn Brdf, wi: Vec3, rings: usize) -> LobeGrid {
             |best, c| if c.0 > best.0 { c } else { best },
         )
         .1;
+    // The pole is a unit vector; the normal's frame only if it were not.
+    let frame = brdf_core::Frame::from_normal(pole)
+        .or_else(|_| brdf_core::Frame::from_normal(Vec3::Z))
+        .expect("the normal has a frame");
     let mut grid = LobeGrid {
         rings,
         sectors: 2 * rings,
-        pole,
+        frame,
         radius: Vec::with_capacity((rings + 1) * 2 * rings),
     };
     for i in 0..=rings {
