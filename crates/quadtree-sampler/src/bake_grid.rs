@@ -4,7 +4,8 @@
 //! wi (linear in θ, bilinear in (θ, φ)); and the rotations that carry a neighbour's tree onto
 //! wi's mirror direction (the isotropic ones written out).
 
-use crate::baked::{BakeError, GRID_THETA_MAX_DEG, MAX_TREES};
+use crate::baked::{GRID_THETA_MAX_DEG, MAX_TREES};
+use crate::error::BakeError;
 use alloc::vec::Vec;
 use brdf_core::Symmetry;
 use brdf_core::math as m;

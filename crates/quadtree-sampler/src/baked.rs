@@ -11,31 +11,9 @@
 //! each node's share of the volume, and the split probabilities and leaf densities the warp
 //! reads, see `warp_table.rs`), so one bake serves both [`BakedMode`]s.
 //!
-//! ## Sampling at a wi off the grid: an exact mixture
-//! `wi` is first folded into the grid's domain by its symmetries (a rotation about z, or
-//! reflections in x and y: both preserve solid angle and f_r). Its neighbouring grid trees k
-//! get interpolation weights w_k (linear in θi, bilinear in (θi, φi)). A sharp lobe moves
-//! with `wi` faster than any affordable grid follows, so each neighbour is not used as is:
-//! its directions are **rotated by the rotation R_k that carries the grid direction's mirror
-//! r(wi_k) onto r(wi)** — the lobe of tree k then sits where the lobe of `wi` is. A rotation
-//! has Jacobian 1, so component k's density at `wo` is exactly p_k(R_k⁻¹ wo) (0 where
-//! R_k⁻¹ wo is below the horizon: such samples are lost, never re-drawn). With a defensive
-//! share δ of cosine sampling, which keeps the density positive wherever f_r·cos θ is,
-//!
-//! pdf(wi, wo) = δ·cos θo/π + (1 − δ)·Σ_k w_k·p_k(R_k⁻¹ wo)  (per unit solid angle),
-//!
-//! and that is what `sample` draws: `uc` picks the defensive part or neighbour k, `u` drives
-//! the chosen tree, the result is rotated by R_k and unfolded. The reported pdf is the true
-//! density of what was drawn, so f·cos θo/pdf is unbiased and the pdf is fit for multiple
-//! importance sampling at any (wi, wo). With p_k:
-//! - **rejection**: Y(f_r(wi_k, w))·cos θ·J/V_k, tree k's own density (exact up to its leaf
-//!   integrals, as for [`crate::QuadtreeSampler`]); `u` descends the tree, the rejection trials
-//!   draw from an RNG; one model evaluation per neighbour for the pdf;
-//! - **warp**: tree k's piecewise-constant proxy (each leaf's share of the volume spread
-//!   uniformly over its square), a deterministic function of (uc, u) — stratified and
-//!   low-discrepancy points stay stratified — and its pdf is a table look-up per neighbour,
-//!   without evaluating the model (the neighbour that drew a sample gives its leaf's density
-//!   without a look-up while the sample's direction maps back into that leaf).
+//! ## Sampling at a wi off the grid
+//! An exact mixture of the neighbouring grid trees, each rotated onto the query's mirror
+//! direction: see `baked_mixture.rs`.
 //!
 //! ## Transport roles
 //! The tables sample `wo` (toward the viewer) given `wi` (toward the light): a light path's
@@ -54,23 +32,20 @@
 //! lobe then smears between slices. The rotation above keeps sharp lobes sharp between
 //! slices and the mixture keeps the pdf exact.
 
-use crate::bake_grid::{BakeGrid, PhiDomain, isotropic_to_local, rotation_between_mirrors_xz};
+use crate::bake_grid::BakeGrid;
 use crate::baked_views::{BakedAt, BrokenPdf};
 use crate::config::BuildConfig;
-use crate::error::BuildError;
+use crate::error::{BakeError, BakedError, BuildError};
 use crate::packed::PackedTree;
-use crate::sampler::{Sample, rejection_in_leaf};
+use crate::sampler::Sample;
 use crate::tree::Quadtree;
-use crate::warp_table::{WarpLeaf, WarpTable};
+use crate::warp_table::WarpTable;
 use alloc::sync::Arc;
 use alloc::vec::Vec;
-use brdf_core::geometry::{above_horizon, luminance, mirror};
-use brdf_core::math as m;
-use brdf_core::warp::sample_cosine_hemisphere;
-use brdf_core::{Brdf, BrdfSample, DirectionError, ParamSet, PeakHints, Symmetry};
-use core::fmt;
+use brdf_core::geometry::mirror;
+use brdf_core::{Brdf, BrdfSample, ParamSet, PeakHints, Symmetry};
 use core::sync::atomic::{AtomicU64, Ordering};
-use glam::{DMat3, DQuat, DVec3, Vec2, Vec3};
+use glam::{Vec2, Vec3};
 use rand_core::Rng;
 
 /// The polar angle of the grid's last row of trees, in degrees. A `wi` beyond it (up to the
@@ -168,93 +143,6 @@ impl Default for BakeConfig {
     }
 }
 
-/// Why a [`BakedSampler`] could not be built.
-#[derive(Clone, Debug, PartialEq)]
-pub enum BakeError {
-    /// `theta_steps` is below 2.
-    ThetaSteps(u16),
-    /// `phi_steps` is below what the folded φ range needs (2, or 3 on the full circle).
-    PhiSteps {
-        /// The value given.
-        got: u16,
-        /// The least allowed.
-        min: u16,
-    },
-    /// The grid would hold more than [`MAX_TREES`] trees.
-    TooManyTrees(usize),
-    /// `defensive` is not in (0, 1).
-    Defensive(f64),
-    /// The model has no continuous part (the perfect mirror): nothing to bake.
-    DeltaModel(&'static str),
-    /// A grid tree could not be built.
-    Tree {
-        /// Its θi, degrees.
-        theta_deg: f64,
-        /// Its φi, degrees.
-        phi_deg: f64,
-        /// Why.
-        source: BuildError,
-    },
-}
-
-impl fmt::Display for BakeError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::ThetaSteps(n) => write!(f, "theta steps = {n}: at least 2 are needed"),
-            Self::PhiSteps { got, min } => {
-                write!(
-                    f,
-                    "phi steps = {got}: this model's φ range needs at least {min}"
-                )
-            }
-            Self::TooManyTrees(n) => {
-                write!(
-                    f,
-                    "a grid of {n} trees is more than the {MAX_TREES} allowed"
-                )
-            }
-            Self::Defensive(d) => write!(f, "defensive share = {d} must be in (0, 1)"),
-            Self::DeltaModel(m) => write!(
-                f,
-                "model `{m}` is a Dirac delta: it has no continuous part to bake (sample it analytically)"
-            ),
-            Self::Tree {
-                theta_deg,
-                phi_deg,
-                source,
-            } => write!(
-                f,
-                "the tree at θi = {theta_deg:.3}°, φi = {phi_deg:.3}°: {source}"
-            ),
-        }
-    }
-}
-
-impl core::error::Error for BakeError {}
-
-/// Why a call on a [`BakedSampler`] has no answer.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum BakedError {
-    /// The given direction is NaN, infinite, zero or below the horizon.
-    Direction(DirectionError),
-}
-
-impl fmt::Display for BakedError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Direction(e) => write!(f, "given direction: {e}"),
-        }
-    }
-}
-
-impl core::error::Error for BakedError {}
-
-impl From<DirectionError> for BakedError {
-    fn from(e: DirectionError) -> Self {
-        Self::Direction(e)
-    }
-}
-
 /// One grid tree: its direction, rejection layout and warp proxy.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Slice {
@@ -263,9 +151,9 @@ pub(crate) struct Slice {
     pub(crate) tree: PackedTree,
     pub(crate) warp: WarpTable,
     /// J/V: the rejection density per unit solid angle is Y(f)·cos θ·this.
-    rejection_scale: f64,
+    pub(crate) rejection_scale: f64,
     /// J: the warp density per unit solid angle is the table's (per square area)·cos θ·this.
-    warp_scale: f64,
+    pub(crate) warp_scale: f64,
 }
 
 impl Slice {
@@ -353,15 +241,6 @@ pub struct BakedSampler {
     pub(crate) mode: BakedMode,
     pub(crate) violations: AtomicU64,
     pub(crate) gave_up: AtomicU64,
-}
-
-/// One neighbour of a query: its tree, weight, and the map from its tree's frame to the
-/// caller's local frame (unfold ∘ rotation onto the query's mirror direction).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Component {
-    pub(crate) slice: usize,
-    pub(crate) weight: f64,
-    pub(crate) to_local: DMat3,
 }
 
 impl BakedSampler {
@@ -541,168 +420,6 @@ impl BakedSampler {
         self.gave_up.load(Ordering::Relaxed)
     }
 
-    fn tables_for(&self, role: Role) -> (&Tables, bool) {
-        match (role, &self.adjoint) {
-            (Role::Radiance, Some(adj)) => (adj, true),
-            _ => (&self.forward, false),
-        }
-    }
-
-    /// f of a grid tree's model at (its wi, w): the model, or its adjoint.
-    #[inline]
-    fn table_eval(&self, adjoint: bool, wi: Vec3, w: Vec3) -> Vec3 {
-        if adjoint {
-            self.brdf.eval(w, wi)
-        } else {
-            self.brdf.eval(wi, w)
-        }
-    }
-
-    /// The components of the mixture at a given (checked, unit) direction.
-    #[inline(always)]
-    pub(crate) fn components(&self, tables: &Tables, given: Vec3) -> ([Component; 4], usize) {
-        let g = given.as_dvec3();
-        let mut out = [Component {
-            slice: 0,
-            weight: 0.0,
-            to_local: DMat3::IDENTITY,
-        }; 4];
-        let mut n = 0;
-        let mut sum = 0.0;
-        // Isotropic: fold by the rotation about z by −φ (from cos φ and sin φ without
-        // trigonometry) onto (sin θ, 0, cos θ); each neighbour's map to the local frame is the
-        // rotation about y between the two mirrors, then about z back by φ, written out.
-        // Otherwise: the domain's fold, and the rotation arc between the mirrors.
-        let iso = self.grid.domain() == PhiDomain::Rotation;
-        let (gc, cs, unfold, mc) = if iso {
-            let r = m::sqrt(g.x * g.x + g.y * g.y);
-            let cs = if r > 0.0 {
-                let inv = 1.0 / r;
-                (g.x * inv, g.y * inv)
-            } else {
-                (1.0, 0.0)
-            };
-            (DVec3::new(r, 0.0, g.z), cs, DMat3::IDENTITY, DVec3::Z)
-        } else {
-            let fold = self.grid.domain().fold(g);
-            let gc = fold * g;
-            let mc = DVec3::new(-gc.x, -gc.y, gc.z).normalize();
-            (gc, (1.0, 0.0), fold.transpose(), mc)
-        };
-        for (slice, w) in self.grid.neighbours(gc) {
-            if w <= 0.0 || tables.slices[slice].tree.volume() <= 0.0 {
-                continue;
-            }
-            if let Some(c) = out[..n].iter_mut().find(|c| c.slice == slice) {
-                c.weight += w;
-                sum += w;
-                continue;
-            }
-            let wk = tables.slices[slice].wi.as_dvec3();
-            let to_local = if iso {
-                isotropic_to_local(cs, rotation_between_mirrors_xz(wk, gc))
-            } else {
-                let mk = DVec3::new(-wk.x, -wk.y, wk.z).normalize();
-                unfold * DMat3::from_quat(DQuat::from_rotation_arc(mk, mc))
-            };
-            out[n] = Component {
-                slice,
-                weight: w,
-                to_local,
-            };
-            n += 1;
-            sum += w;
-        }
-        if sum != 1.0 && n > 0 {
-            let inv = 1.0 / sum;
-            for c in &mut out[..n] {
-                c.weight *= inv;
-            }
-        }
-        (out, n)
-    }
-
-    /// Component `c`'s density at local `wo`, per unit solid angle. `leaf`: the warp leaf the
-    /// sample being scored was drawn in, when `c` is the component that drew it — its density
-    /// is the one [`WarpTable::density`] would find wherever `wo` maps back into that leaf
-    /// (the same stored number), so only a point that rounding moved out of it descends.
-    #[inline]
-    pub(crate) fn component_pdf(
-        &self,
-        tables: &Tables,
-        adjoint: bool,
-        c: &Component,
-        wo: DVec3,
-        leaf: Option<&WarpLeaf>,
-    ) -> f64 {
-        let w = c.to_local.transpose() * wo;
-        if w.z <= 0.0 {
-            return 0.0;
-        }
-        let s = &tables.slices[c.slice];
-        let wf = w.as_vec3();
-        match self.mode {
-            BakedMode::Rejection => {
-                let y = f64::from(luminance(self.table_eval(adjoint, s.wi, wf)));
-                y * w.z * s.rejection_scale
-            }
-            BakedMode::Warp => {
-                let p = s.tree.map().direction_to_square(wf).as_dvec2();
-                let d = match leaf {
-                    Some(l) if l.contains(p) => l.density,
-                    _ => s.warp.density(p),
-                };
-                d * s.warp_scale * w.z
-            }
-        }
-    }
-
-    /// The density of [`BakedSampler::sample_continuous_as`] at a checked pair. `sampled`
-    /// need only be finite and non-zero: it is normalised here in f64, so that the pdf a
-    /// sample carries and the pdf of the same f32 vector asked for later are bit-identical
-    /// (renormalising in f32 could move a direction on a leaf's edge into its neighbour).
-    pub(crate) fn pdf_unit(&self, role: Role, given: Vec3, sampled: Vec3) -> f32 {
-        let (tables, adjoint) = self.tables_for(role);
-        let (comps, n) = self.components(tables, given);
-        self.pdf_of(tables, adjoint, &comps[..n], sampled, None)
-    }
-
-    /// The mixture's density at `sampled` from its components (the one expression behind
-    /// `pdf` and the pdf a sample carries; `drawn`: the component and warp leaf a sample
-    /// came from, which changes how its density is found, never its value).
-    pub(crate) fn pdf_of(
-        &self,
-        tables: &Tables,
-        adjoint: bool,
-        comps: &[Component],
-        sampled: Vec3,
-        drawn: Option<(usize, WarpLeaf)>,
-    ) -> f32 {
-        let n = comps.len();
-        let wo = sampled.as_dvec3().normalize_or_zero();
-        // (NaN fails too: normalize_or_zero gives 0 for it.)
-        if wo.z <= 0.0 {
-            return 0.0;
-        }
-        let delta = if n == 0 { 1.0 } else { self.config.defensive };
-        let mut p = delta * wo.z * core::f64::consts::FRAC_1_PI;
-        for (k, c) in comps[..n].iter().enumerate() {
-            let leaf = drawn.as_ref().filter(|d| d.0 == k).map(|d| &d.1);
-            p += (1.0 - delta) * c.weight * self.component_pdf(tables, adjoint, c, wo, leaf);
-        }
-        p as f32
-    }
-
-    /// f_r for a role: (given, sampled) are (wi, wo) for [`Role::Importance`] and (wo, wi)
-    /// for [`Role::Radiance`].
-    #[inline]
-    fn eval_unit(&self, role: Role, given: Vec3, sampled: Vec3) -> Vec3 {
-        match role {
-            Role::Importance => self.brdf.eval(given, sampled),
-            Role::Radiance => self.brdf.eval(sampled, given),
-        }
-    }
-
     /// Draws the sampled direction of the continuous part for a role, given the other one
     /// (local frame, checked: finite, non-zero, above the horizon). `uc` chooses the
     /// defensive part or a neighbour tree, `u` drives the tree (rejection: its descent, with
@@ -721,76 +438,6 @@ impl BakedSampler {
     ) -> Result<Option<Sample>, BakedError> {
         let given = brdf_core::geometry::unit_direction_above(given)?;
         Ok(self.sample_unit(role, given, uc, u, rng))
-    }
-
-    pub(crate) fn sample_unit<R: Rng + ?Sized>(
-        &self,
-        role: Role,
-        given: Vec3,
-        uc: f32,
-        u: Vec2,
-        rng: &mut R,
-    ) -> Option<Sample> {
-        let (tables, adjoint) = self.tables_for(role);
-        let (comps, n) = self.components(tables, given);
-        let delta = if n == 0 { 1.0 } else { self.config.defensive };
-        let uc = f64::from(uc.clamp(0.0, 1.0));
-        let mut trials = 1;
-        let mut drawn = None;
-        let wo = if uc < delta || n == 0 {
-            sample_cosine_hemisphere(u)
-        } else {
-            let mut x = (uc - delta) / (1.0 - delta);
-            let mut pick = n - 1;
-            for (k, c) in comps[..n].iter().enumerate() {
-                if x < c.weight {
-                    pick = k;
-                    break;
-                }
-                x -= c.weight;
-            }
-            let c = &comps[pick];
-            let s = &tables.slices[c.slice];
-            let w = match self.mode {
-                BakedMode::Rejection => {
-                    let leaf = s.tree.select(crate::sampler::descent_uniform(u));
-                    let Some((_, w, _, t)) = rejection_in_leaf(
-                        &s.tree,
-                        &leaf,
-                        |w| self.table_eval(adjoint, s.wi, w),
-                        rng,
-                        &self.violations,
-                    ) else {
-                        self.gave_up.fetch_add(1, Ordering::Relaxed);
-                        return None;
-                    };
-                    trials = t;
-                    w.as_dvec3()
-                }
-                BakedMode::Warp => {
-                    let (p, leaf) = s.warp.warp(u.as_dvec2())?;
-                    drawn = Some((pick, leaf));
-                    s.tree.map().square_to_direction_f64(p)?
-                }
-            };
-            (c.to_local * w).as_vec3().normalize_or_zero()
-        };
-        if !above_horizon(wo) {
-            return None;
-        }
-        let pdf = self.pdf_of(tables, adjoint, &comps[..n], wo, drawn);
-        if !(pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
-        let f = self.eval_unit(role, given, wo);
-        Some(Sample {
-            wo,
-            pdf,
-            f,
-            weight: f * (wo.z / pdf),
-            delta: false,
-            trials,
-        })
     }
 
     /// The density of [`BakedSampler::sample_continuous_as`]: of `sampled` given `given`,

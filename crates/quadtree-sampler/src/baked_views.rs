@@ -3,7 +3,8 @@
 //! around a shading frame ([`WorldBsdf`], pbrt's BSDF around a BxDF), and the hidden negative
 //! control whose reported pdf drops a neighbour ([`BrokenPdf`]).
 
-use crate::baked::{BakedError, BakedMode, BakedSampler, Role};
+use crate::baked::{BakedMode, BakedSampler, Role};
+use crate::error::BakedError;
 use crate::sampler::Sample;
 use alloc::sync::Arc;
 use glam::{Vec2, Vec3};

@@ -128,6 +128,14 @@ impl Rect {
     pub fn contains(&self, p: DVec2) -> bool {
         p.x >= self.min.x && p.x <= self.max.x && p.y >= self.min.y && p.y <= self.max.y
     }
+
+    /// Whether `p` lies in the half-open rectangle [min, max): the cells a descent that sends
+    /// points on a split line to the upper side ([`Rect::quadrant_of`]) keeps apart.
+    #[inline]
+    #[must_use]
+    pub fn contains_half_open(&self, p: DVec2) -> bool {
+        p.x >= self.min.x && p.y >= self.min.y && p.x < self.max.x && p.y < self.max.y
+    }
 }
 
 /// The coordinates a leaf is rejection-sampled in (see the module doc).

@@ -1,5 +1,6 @@
-//! Typed errors of the quadtree builder and samplers.
+//! Typed errors of the quadtree builder, the baked sampler and its calls.
 
+use crate::MAX_TREES;
 use brdf_core::DirectionError;
 use core::fmt;
 
@@ -76,6 +77,93 @@ impl fmt::Display for BuildError {
 impl core::error::Error for BuildError {}
 
 impl From<DirectionError> for BuildError {
+    fn from(e: DirectionError) -> Self {
+        Self::Direction(e)
+    }
+}
+
+/// Why a [`BakedSampler`] could not be built.
+#[derive(Clone, Debug, PartialEq)]
+pub enum BakeError {
+    /// `theta_steps` is below 2.
+    ThetaSteps(u16),
+    /// `phi_steps` is below what the folded φ range needs (2, or 3 on the full circle).
+    PhiSteps {
+        /// The value given.
+        got: u16,
+        /// The least allowed.
+        min: u16,
+    },
+    /// The grid would hold more than [`MAX_TREES`] trees.
+    TooManyTrees(usize),
+    /// `defensive` is not in (0, 1).
+    Defensive(f64),
+    /// The model has no continuous part (the perfect mirror): nothing to bake.
+    DeltaModel(&'static str),
+    /// A grid tree could not be built.
+    Tree {
+        /// Its θi, degrees.
+        theta_deg: f64,
+        /// Its φi, degrees.
+        phi_deg: f64,
+        /// Why.
+        source: BuildError,
+    },
+}
+
+impl fmt::Display for BakeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::ThetaSteps(n) => write!(f, "theta steps = {n}: at least 2 are needed"),
+            Self::PhiSteps { got, min } => {
+                write!(
+                    f,
+                    "phi steps = {got}: this model's φ range needs at least {min}"
+                )
+            }
+            Self::TooManyTrees(n) => {
+                write!(
+                    f,
+                    "a grid of {n} trees is more than the {MAX_TREES} allowed"
+                )
+            }
+            Self::Defensive(d) => write!(f, "defensive share = {d} must be in (0, 1)"),
+            Self::DeltaModel(m) => write!(
+                f,
+                "model `{m}` is a Dirac delta: it has no continuous part to bake (sample it analytically)"
+            ),
+            Self::Tree {
+                theta_deg,
+                phi_deg,
+                source,
+            } => write!(
+                f,
+                "the tree at θi = {theta_deg:.3}°, φi = {phi_deg:.3}°: {source}"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for BakeError {}
+
+/// Why a call on a [`BakedSampler`] has no answer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum BakedError {
+    /// The given direction is NaN, infinite, zero or below the horizon.
+    Direction(DirectionError),
+}
+
+impl fmt::Display for BakedError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Direction(e) => write!(f, "given direction: {e}"),
+        }
+    }
+}
+
+impl core::error::Error for BakedError {}
+
+impl From<DirectionError> for BakedError {
     fn from(e: DirectionError) -> Self {
         Self::Direction(e)
     }

@@ -66,6 +66,7 @@ extern crate std;
 mod bake_file;
 mod bake_grid;
 mod baked;
+mod baked_mixture;
 mod baked_views;
 mod bound;
 pub mod chart;
@@ -89,14 +90,14 @@ pub use bake_file::{BAKE_FORMAT_VERSION, BAKE_MAGIC, BakeFileError};
 pub use bake_file::{BakeIoError, temporary_beside, write_atomically};
 pub use bake_grid::{BakeGrid, PhiDomain};
 pub use baked::{
-    BakeConfig, BakeError, BakedError, BakedMode, BakedSampler, DEFAULT_BAKE_NODE_BUDGET,
-    DEFAULT_DEFENSIVE, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, GRID_THETA_MAX_DEG, MAX_TREES, Role,
+    BakeConfig, BakedMode, BakedSampler, DEFAULT_BAKE_NODE_BUDGET, DEFAULT_DEFENSIVE,
+    DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, GRID_THETA_MAX_DEG, MAX_TREES, Role,
 };
 pub use baked_views::{BakedAt, BrokenAt, BrokenPdf, WorldBsdf};
 pub use brdf_core;
 pub use config::{BuildConfig, EVALUATIONS_PER_NODE, IntegrationRule};
 pub use encoder::refleja;
-pub use error::BuildError;
+pub use error::{BakeError, BakedError, BuildError};
 pub use factory::{AnySampler, SamplerMode};
 pub use packed::{PackedLeaf, PackedNode, PackedTree, Selected};
 pub use sampler::{

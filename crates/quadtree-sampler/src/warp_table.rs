@@ -29,7 +29,7 @@
 //! stored number, so the density a sample carries and the density of its point asked for
 //! later are the same value ([`WarpLeaf::contains`] says when a point is still in the leaf).
 
-use crate::chart::{child_column, child_index, child_row};
+use crate::chart::{Rect, child_column, child_index, child_row};
 use alloc::vec::Vec;
 use glam::DVec2;
 
@@ -49,25 +49,21 @@ struct WarpNode {
     rows: [u32; 2],
 }
 
-/// The leaf a warp reached: its square (min corner, side) and density per unit square area.
+/// The leaf a warp reached: its square and density per unit square area.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct WarpLeaf {
     pub(crate) index: usize,
-    pub(crate) min: DVec2,
-    pub(crate) size: f64,
+    pub(crate) rect: Rect,
     pub(crate) density: f64,
 }
 
 impl WarpLeaf {
-    /// Whether square point `p` is in this leaf's half-open square [min, min + size)², the
-    /// squares [`WarpTable::density`]'s descent separates (its cuts are `p ≥ mid`; squares,
-    /// corners and midpoints are dyadic, so the two agree exactly).
+    /// Whether square point `p` is in this leaf's half-open square, the squares
+    /// [`WarpTable::density`]'s descent separates (its cuts are `p ≥ mid`; squares, corners
+    /// and midpoints are dyadic, so the two agree exactly).
     #[inline]
     pub(crate) fn contains(&self, p: DVec2) -> bool {
-        p.x >= self.min.x
-            && p.y >= self.min.y
-            && p.x < self.min.x + self.size
-            && p.y < self.min.y + self.size
+        self.rect.contains_half_open(p)
     }
 }
 
@@ -235,8 +231,7 @@ impl WarpTable {
                     .clamp(DVec2::ZERO, DVec2::splat(1.0 - f64::EPSILON));
                 let leaf = WarpLeaf {
                     index: i,
-                    min,
-                    size,
+                    rect: Rect::square(min.x, min.y, size),
                     density,
                 };
                 return Some((min + t * size, leaf));
@@ -397,7 +392,7 @@ mod tests {
             }
         }
         for leaf in leaves {
-            let (lo, hi) = (leaf.min, leaf.min + leaf.size);
+            let (lo, hi) = (leaf.rect.min, leaf.rect.max);
             let xs = [lo.x, hi.x.next_down(), hi.x, lo.x.next_down()];
             let ys = [lo.y, hi.y.next_down(), hi.y, lo.y.next_down()];
             for x in xs {

@@ -1,0 +1,282 @@
+//! How a [`BakedSampler`] answers at a wi off its grid: an exact mixture of the
+//! neighbouring grid trees.
+//!
+//! `wi` is first folded into the grid's domain by its symmetries (a rotation about z, or
+//! reflections in x and y: both preserve solid angle and f_r). Its neighbouring grid trees k
+//! get interpolation weights w_k (linear in θi, bilinear in (θi, φi)). A sharp lobe moves
+//! with `wi` faster than any affordable grid follows, so each neighbour is not used as is:
+//! its directions are **rotated by the rotation R_k that carries the grid direction's mirror
+//! r(wi_k) onto r(wi)** — the lobe of tree k then sits where the lobe of `wi` is. A rotation
+//! has Jacobian 1, so component k's density at `wo` is exactly p_k(R_k⁻¹ wo) (0 where
+//! R_k⁻¹ wo is below the horizon: such samples are lost, never re-drawn). With a defensive
+//! share δ of cosine sampling, which keeps the density positive wherever f_r·cos θ is,
+//!
+//! pdf(wi, wo) = δ·cos θo/π + (1 − δ)·Σ_k w_k·p_k(R_k⁻¹ wo)  (per unit solid angle),
+//!
+//! and that is what `sample` draws: `uc` picks the defensive part or neighbour k, `u` drives
+//! the chosen tree, the result is rotated by R_k and unfolded. The reported pdf is the true
+//! density of what was drawn, so f·cos θo/pdf is unbiased and the pdf is fit for multiple
+//! importance sampling at any (wi, wo). With p_k:
+//! - **rejection**: Y(f_r(wi_k, w))·cos θ·J/V_k, tree k's own density (exact up to its leaf
+//!   integrals, as for [`crate::QuadtreeSampler`]); `u` descends the tree, the rejection trials
+//!   draw from an RNG; one model evaluation per neighbour for the pdf;
+//! - **warp**: tree k's piecewise-constant proxy (each leaf's share of the volume spread
+//!   uniformly over its square), a deterministic function of (uc, u) — stratified and
+//!   low-discrepancy points stay stratified — and its pdf is a table look-up per neighbour,
+//!   without evaluating the model (the neighbour that drew a sample gives its leaf's density
+//!   without a look-up while the sample's direction maps back into that leaf).
+
+use crate::bake_grid::{PhiDomain, isotropic_to_local, rotation_between_mirrors_xz};
+use crate::baked::{BakedMode, BakedSampler, Role, Tables};
+use crate::sampler::{Sample, rejection_in_leaf};
+use crate::warp_table::WarpLeaf;
+use brdf_core::geometry::{above_horizon, luminance};
+use brdf_core::math as m;
+use brdf_core::warp::sample_cosine_hemisphere;
+use core::sync::atomic::Ordering;
+use glam::{DMat3, DQuat, DVec3, Vec2, Vec3};
+use rand_core::Rng;
+
+/// One neighbour of a query: its tree, weight, and the map from its tree's frame to the
+/// caller's local frame (unfold ∘ rotation onto the query's mirror direction).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Component {
+    pub(crate) slice: usize,
+    pub(crate) weight: f64,
+    pub(crate) to_local: DMat3,
+}
+
+impl BakedSampler {
+    pub(crate) fn tables_for(&self, role: Role) -> (&Tables, bool) {
+        match (role, &self.adjoint) {
+            (Role::Radiance, Some(adj)) => (adj, true),
+            _ => (&self.forward, false),
+        }
+    }
+
+    /// f of a grid tree's model at (its wi, w): the model, or its adjoint.
+    #[inline]
+    pub(crate) fn table_eval(&self, adjoint: bool, wi: Vec3, w: Vec3) -> Vec3 {
+        if adjoint {
+            self.brdf.eval(w, wi)
+        } else {
+            self.brdf.eval(wi, w)
+        }
+    }
+
+    /// The components of the mixture at a given (checked, unit) direction.
+    #[inline(always)]
+    pub(crate) fn components(&self, tables: &Tables, given: Vec3) -> ([Component; 4], usize) {
+        let g = given.as_dvec3();
+        let mut out = [Component {
+            slice: 0,
+            weight: 0.0,
+            to_local: DMat3::IDENTITY,
+        }; 4];
+        let mut n = 0;
+        let mut sum = 0.0;
+        // Isotropic: fold by the rotation about z by −φ (from cos φ and sin φ without
+        // trigonometry) onto (sin θ, 0, cos θ); each neighbour's map to the local frame is the
+        // rotation about y between the two mirrors, then about z back by φ, written out.
+        // Otherwise: the domain's fold, and the rotation arc between the mirrors.
+        let iso = self.grid.domain() == PhiDomain::Rotation;
+        let (gc, cs, unfold, mc) = if iso {
+            let r = m::sqrt(g.x * g.x + g.y * g.y);
+            let cs = if r > 0.0 {
+                let inv = 1.0 / r;
+                (g.x * inv, g.y * inv)
+            } else {
+                (1.0, 0.0)
+            };
+            (DVec3::new(r, 0.0, g.z), cs, DMat3::IDENTITY, DVec3::Z)
+        } else {
+            let fold = self.grid.domain().fold(g);
+            let gc = fold * g;
+            let mc = DVec3::new(-gc.x, -gc.y, gc.z).normalize();
+            (gc, (1.0, 0.0), fold.transpose(), mc)
+        };
+        for (slice, w) in self.grid.neighbours(gc) {
+            if w <= 0.0 || tables.slices[slice].tree.volume() <= 0.0 {
+                continue;
+            }
+            if let Some(c) = out[..n].iter_mut().find(|c| c.slice == slice) {
+                c.weight += w;
+                sum += w;
+                continue;
+            }
+            let wk = tables.slices[slice].wi.as_dvec3();
+            let to_local = if iso {
+                isotropic_to_local(cs, rotation_between_mirrors_xz(wk, gc))
+            } else {
+                let mk = DVec3::new(-wk.x, -wk.y, wk.z).normalize();
+                unfold * DMat3::from_quat(DQuat::from_rotation_arc(mk, mc))
+            };
+            out[n] = Component {
+                slice,
+                weight: w,
+                to_local,
+            };
+            n += 1;
+            sum += w;
+        }
+        if sum != 1.0 && n > 0 {
+            let inv = 1.0 / sum;
+            for c in &mut out[..n] {
+                c.weight *= inv;
+            }
+        }
+        (out, n)
+    }
+
+    /// Component `c`'s density at local `wo`, per unit solid angle. `leaf`: the warp leaf the
+    /// sample being scored was drawn in, when `c` is the component that drew it — its density
+    /// is the one [`WarpTable::density`] would find wherever `wo` maps back into that leaf
+    /// (the same stored number), so only a point that rounding moved out of it descends.
+    #[inline]
+    pub(crate) fn component_pdf(
+        &self,
+        tables: &Tables,
+        adjoint: bool,
+        c: &Component,
+        wo: DVec3,
+        leaf: Option<&WarpLeaf>,
+    ) -> f64 {
+        let w = c.to_local.transpose() * wo;
+        if w.z <= 0.0 {
+            return 0.0;
+        }
+        let s = &tables.slices[c.slice];
+        let wf = w.as_vec3();
+        match self.mode {
+            BakedMode::Rejection => {
+                let y = f64::from(luminance(self.table_eval(adjoint, s.wi, wf)));
+                y * w.z * s.rejection_scale
+            }
+            BakedMode::Warp => {
+                let p = s.tree.map().direction_to_square(wf).as_dvec2();
+                let d = match leaf {
+                    Some(l) if l.contains(p) => l.density,
+                    _ => s.warp.density(p),
+                };
+                d * s.warp_scale * w.z
+            }
+        }
+    }
+
+    /// The density of [`BakedSampler::sample_continuous_as`] at a checked pair. `sampled`
+    /// need only be finite and non-zero: it is normalised here in f64, so that the pdf a
+    /// sample carries and the pdf of the same f32 vector asked for later are bit-identical
+    /// (renormalising in f32 could move a direction on a leaf's edge into its neighbour).
+    pub(crate) fn pdf_unit(&self, role: Role, given: Vec3, sampled: Vec3) -> f32 {
+        let (tables, adjoint) = self.tables_for(role);
+        let (comps, n) = self.components(tables, given);
+        self.pdf_of(tables, adjoint, &comps[..n], sampled, None)
+    }
+
+    /// The mixture's density at `sampled` from its components (the one expression behind
+    /// `pdf` and the pdf a sample carries; `drawn`: the component and warp leaf a sample
+    /// came from, which changes how its density is found, never its value).
+    pub(crate) fn pdf_of(
+        &self,
+        tables: &Tables,
+        adjoint: bool,
+        comps: &[Component],
+        sampled: Vec3,
+        drawn: Option<(usize, WarpLeaf)>,
+    ) -> f32 {
+        let n = comps.len();
+        let wo = sampled.as_dvec3().normalize_or_zero();
+        // (NaN fails too: normalize_or_zero gives 0 for it.)
+        if wo.z <= 0.0 {
+            return 0.0;
+        }
+        let delta = if n == 0 { 1.0 } else { self.config.defensive };
+        let mut p = delta * wo.z * core::f64::consts::FRAC_1_PI;
+        for (k, c) in comps[..n].iter().enumerate() {
+            let leaf = drawn.as_ref().filter(|d| d.0 == k).map(|d| &d.1);
+            p += (1.0 - delta) * c.weight * self.component_pdf(tables, adjoint, c, wo, leaf);
+        }
+        p as f32
+    }
+
+    /// f_r for a role: (given, sampled) are (wi, wo) for [`Role::Importance`] and (wo, wi)
+    /// for [`Role::Radiance`].
+    #[inline]
+    pub(crate) fn eval_unit(&self, role: Role, given: Vec3, sampled: Vec3) -> Vec3 {
+        match role {
+            Role::Importance => self.brdf.eval(given, sampled),
+            Role::Radiance => self.brdf.eval(sampled, given),
+        }
+    }
+
+    /// The draw behind [`BakedSampler::sample_continuous_as`], at a checked `given`.
+    pub(crate) fn sample_unit<R: Rng + ?Sized>(
+        &self,
+        role: Role,
+        given: Vec3,
+        uc: f32,
+        u: Vec2,
+        rng: &mut R,
+    ) -> Option<Sample> {
+        let (tables, adjoint) = self.tables_for(role);
+        let (comps, n) = self.components(tables, given);
+        let delta = if n == 0 { 1.0 } else { self.config.defensive };
+        let uc = f64::from(uc.clamp(0.0, 1.0));
+        let mut trials = 1;
+        let mut drawn = None;
+        let wo = if uc < delta || n == 0 {
+            sample_cosine_hemisphere(u)
+        } else {
+            let mut x = (uc - delta) / (1.0 - delta);
+            let mut pick = n - 1;
+            for (k, c) in comps[..n].iter().enumerate() {
+                if x < c.weight {
+                    pick = k;
+                    break;
+                }
+                x -= c.weight;
+            }
+            let c = &comps[pick];
+            let s = &tables.slices[c.slice];
+            let w = match self.mode {
+                BakedMode::Rejection => {
+                    let leaf = s.tree.select(crate::sampler::descent_uniform(u));
+                    let Some((_, w, _, t)) = rejection_in_leaf(
+                        &s.tree,
+                        &leaf,
+                        |w| self.table_eval(adjoint, s.wi, w),
+                        rng,
+                        &self.violations,
+                    ) else {
+                        self.gave_up.fetch_add(1, Ordering::Relaxed);
+                        return None;
+                    };
+                    trials = t;
+                    w.as_dvec3()
+                }
+                BakedMode::Warp => {
+                    let (p, leaf) = s.warp.warp(u.as_dvec2())?;
+                    drawn = Some((pick, leaf));
+                    s.tree.map().square_to_direction_f64(p)?
+                }
+            };
+            (c.to_local * w).as_vec3().normalize_or_zero()
+        };
+        if !above_horizon(wo) {
+            return None;
+        }
+        let pdf = self.pdf_of(tables, adjoint, &comps[..n], wo, drawn);
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
+        let f = self.eval_unit(role, given, wo);
+        Some(Sample {
+            wo,
+            pdf,
+            f,
+            weight: f * (wo.z / pdf),
+            delta: false,
+            trials,
+        })
+    }
+}
