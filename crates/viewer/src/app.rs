@@ -4,6 +4,7 @@
 
 use crate::central::{ALPHA, DiskScene, DiskView, HistogramsView, LiveTest, LobeView};
 use crate::export;
+use crate::grids::{FrMap, TreeView};
 use crate::launch::Resolved;
 use crate::lobe::{LobeMesh, LobeResources, OrbitCamera};
 use crate::panels::{
@@ -11,7 +12,7 @@ use crate::panels::{
     StatsPanel, StatsView, Style, TreePanel, ViewPanel,
 };
 use crate::views::{self, Background};
-use crate::worker::{FrMap, Request, SampleState, SamplerKind, TreeView, Update, Worker};
+use crate::worker::{Request, SampleState, SamplerKind, Update, Worker};
 use brdf_core::geometry::spherical_angles;
 use brdf_core::registry;
 use brdf_core::{Brdf, DiskMap, ParamKind, ParamValue};

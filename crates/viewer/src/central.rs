@@ -2,10 +2,10 @@
 //! square with f_r or the leaves, the samples and the markers; a drag asks to move wi), the 3D
 //! lobe, and the three histograms with the live χ² of [`LiveTest`].
 
+use crate::grids::TreeView;
 use crate::lobe::{LobeMesh, LobePaint, OrbitCamera, project};
 use crate::panels::Command;
 use crate::views;
-use crate::worker::TreeView;
 use brdf_core::DiskMap;
 use brdf_validate::{ChiSquare, Histogram};
 use eframe::egui::{self, Color32, Rect, Sense, Stroke, TextureHandle, vec2};

@@ -1,6 +1,6 @@
 //! Exports: a PNG of each view (cropped from a full-window image) and the raw maps as EXR.
 
-use crate::worker::{FrMap, TreeView};
+use crate::grids::{FrMap, TreeView};
 use brdf_validate::Histogram;
 use eframe::egui::{ColorImage, Rect};
 use std::collections::BTreeMap;

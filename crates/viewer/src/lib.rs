@@ -12,6 +12,7 @@
 pub mod app;
 pub mod central;
 pub mod export;
+pub mod grids;
 pub mod launch;
 pub mod lobe;
 pub mod panels;

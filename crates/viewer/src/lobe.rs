@@ -8,7 +8,7 @@
 //! single-sampled (eframe's and egui_kittest's default `multisampling` 0), which the copy
 //! pipeline assumes.
 
-use crate::worker::LobeGrid;
+use crate::grids::LobeGrid;
 use eframe::egui_wgpu::{self, wgpu};
 use glam::{Mat4, Vec3};
 use std::sync::Arc;

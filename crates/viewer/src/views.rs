@@ -1,7 +1,7 @@
 //! Drawing helpers of the 2D views: the f_r / leaf images of the disk view, the quadtree's
 //! leaf outlines, and the histogram cells of the validation grid.
 
-use crate::worker::{FrMap, TreeView};
+use crate::grids::{FrMap, TreeView};
 use brdf_validate::CellGrid;
 use eframe::egui::{self, Color32, ColorImage, Mesh, Pos2, Rect, Shape, Stroke};
 use glam::Vec2;
