@@ -64,6 +64,23 @@ pub const fn child_row(k: usize) -> usize {
 }
 
 impl Rect {
+    /// The square of quadtree cell (`column`, `row`) at `depth` (≤ 30): side s = 2/2^depth,
+    /// lower-left corner (−1 + column·s, −1 + row·s). Exact: every corner is a multiple of s
+    /// in [−1, 1]. The one way a node's square is formed from its place in the tree.
+    #[inline]
+    #[must_use]
+    pub fn dyadic(depth: u8, column: u32, row: u32) -> Self {
+        let s = 2.0 / f64::from(1u32 << depth);
+        Self::square(f64::from(column) * s - 1.0, f64::from(row) * s - 1.0, s)
+    }
+
+    /// The side of a square (its width).
+    #[inline]
+    #[must_use]
+    pub fn side(&self) -> f64 {
+        self.max.x - self.min.x
+    }
+
     /// The square [x, x+s) × [y, y+s).
     #[must_use]
     pub fn square(x: f64, y: f64, s: f64) -> Self {
@@ -230,5 +247,35 @@ pub(crate) mod tests {
         (0..n * n)
             .map(|k| Rect::square(-1.0 + (k % n) as f64 * s, -1.0 + (k / n) as f64 * s, s))
             .collect()
+    }
+
+    /// A node's square is exact at every depth the build allows (30): its children tile it
+    /// in the child order, and the last cell of a row ends at 1. (Squares kept as f32 corners,
+    /// as nodes once were, lose their corners past depth 24.)
+    #[test]
+    fn dyadic_squares_are_exact_to_the_deepest_level() {
+        for depth in [0u8, 1, 7, 24, 25, 29] {
+            let n = 1u32 << depth;
+            for (column, row) in [(0, 0), (n - 1, 0), (n / 2, n - 1), (n / 3, n / 5 + 1)] {
+                let r = Rect::dyadic(depth, column, row);
+                assert_eq!(r.side(), 2.0 / f64::from(n));
+                assert_eq!(r.max.x - r.min.x, r.max.y - r.min.y);
+                if column == n - 1 {
+                    assert_eq!(r.max.x, 1.0);
+                }
+                for (k, q) in r.quadrants().into_iter().enumerate() {
+                    let child = Rect::dyadic(
+                        depth + 1,
+                        2 * column + child_column(k) as u32,
+                        2 * row + child_row(k) as u32,
+                    );
+                    assert_eq!(child, q, "depth {depth} ({column}, {row}) child {k}");
+                    assert_eq!(r.quadrant_of(child.min), k);
+                }
+            }
+        }
+        let deepest = Rect::dyadic(30, (1 << 30) - 1, 0);
+        assert_eq!((deepest.min.x, deepest.max.x), (1.0 - 0.5f64.powi(29), 1.0));
+        assert!(deepest.min.x as f32 == 1.0, "f32 cannot hold this corner");
     }
 }

@@ -1,7 +1,7 @@
 //! The arena quadtree (seed §2.1, Fig. 1–2): nodes, the split (`particionar`) and the
 //! target-trials refinement.
 
-use crate::chart::Rect;
+use crate::chart::{Rect, child_column, child_row};
 use crate::config::BuildConfig;
 use crate::error::BuildError;
 use crate::evaluate::{Context, SPLIT_CHUNK};
@@ -18,18 +18,17 @@ pub const LEAF: u32 = 0;
 
 /// One node of the arena: the seed's `Nodo` with its `Region`.
 ///
-/// The square is [x, x+s) × [y, y+s) of the seed's domain; `v1` = ∫ f_r over it (square
+/// The square is the dyadic cell (`column`, `row`) at `depth` of the seed's domain
+/// ([`Node::rect`]); `v1` = ∫ f_r over it (square
 /// measure), `bound` (M) an upper bound of the proposal's height function over the proposal
 /// box, and P = v1 / (box area · M). Children are four contiguous nodes from `first_child`,
 /// in the child order of [`crate::chart::child_index`]: (−,−), (+,−), (−,+), (+,+).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Node {
-    /// Lower-left corner u.
-    pub x: f32,
-    /// Lower-left corner v.
-    pub y: f32,
-    /// Side s.
-    pub size: f32,
+    /// Column of the node's square among the 2^depth of its depth (0: at u = −1).
+    pub column: u32,
+    /// Row of the node's square among the 2^depth of its depth (0: at v = −1).
+    pub row: u32,
     /// Depth (root = 0).
     pub depth: u8,
     /// Index of the first of four children, or [`LEAF`].
@@ -43,10 +42,11 @@ pub struct Node {
 }
 
 impl Node {
-    /// The node's square in f64.
+    /// The node's square, exact ([`Rect::dyadic`]).
+    #[inline]
     #[must_use]
     pub fn rect(&self) -> Rect {
-        Rect::square(f64::from(self.x), f64::from(self.y), f64::from(self.size))
+        Rect::dyadic(self.depth, self.column, self.row)
     }
 
     /// Whether the node has no children.
@@ -177,9 +177,8 @@ impl Quadtree {
         let mut pending = alloc::vec![ctx.remember(cells)];
         let mut tree = Self {
             nodes: alloc::vec![Node {
-                x: -1.0,
-                y: -1.0,
-                size: 2.0,
+                column: 0,
+                row: 0,
                 depth: 0,
                 first_child: LEAF,
                 v1: e.v1,
@@ -281,25 +280,21 @@ impl Quadtree {
             let cells = pending[p as usize].take();
             ctx.forget(&cells);
             inherited.extend(cells.map_or([None, None, None, None], Cell::into_quads));
-            let h = 0.5 * n.size;
-            for (dx, dy) in [(0.0, 0.0), (h, 0.0), (0.0, h), (h, h)] {
-                let (x, y) = (n.x + dx, n.y + dy);
-                rects.push((
-                    Rect::square(f64::from(x), f64::from(y), f64::from(h)),
-                    x,
-                    y,
-                    h,
-                    n.depth + 1,
-                ));
+            for k in 0..4 {
+                let (column, row) = (
+                    2 * n.column + child_column(k) as u32,
+                    2 * n.row + child_row(k) as u32,
+                );
+                let depth = n.depth + 1;
+                rects.push((Rect::dyadic(depth, column, row), column, row, depth));
             }
         }
         let evals = ctx.evaluate_all(rects.iter().map(|r| r.0).zip(inherited).collect());
-        for ((_, x, y, s, depth), (e, cells)) in rects.into_iter().zip(evals) {
+        for ((_, column, row, depth), (e, cells)) in rects.into_iter().zip(evals) {
             pending.push(cells);
             self.nodes.push(Node {
-                x,
-                y,
-                size: s,
+                column,
+                row,
                 depth,
                 first_child: LEAF,
                 v1: e.v1,

@@ -61,7 +61,7 @@ impl<B: Brdf> WarpSampler<B> {
             .nodes()
             .iter()
             .map(|n| {
-                let area = f64::from(n.size) * f64::from(n.size) / 4.0;
+                let area = n.rect().area() / 4.0;
                 let t = if volume > 0.0 { n.v1 / volume } else { 0.0 };
                 (1.0 - mix) * t + mix * area
             })
@@ -114,9 +114,8 @@ impl<B: Brdf> WarpSampler<B> {
             let row = split(&mut u.y, q[col], q[col + 2]);
             i = c + child_index(col, row);
         }
-        let n = &nodes[i];
-        let p = DVec2::new(f64::from(n.x), f64::from(n.y)) + u * f64::from(n.size);
-        (p, i)
+        let r = nodes[i].rect();
+        (r.min + u * r.side(), i)
     }
 
     /// The inverse of [`WarpSampler::warp_to_square`]: a square point → its u.
@@ -147,8 +146,8 @@ impl<B: Brdf> WarpSampler<B> {
             steps.push((ox, sx, oy, sy));
             i = c + k;
         }
-        let n = &nodes[i];
-        let mut u = (p - DVec2::new(f64::from(n.x), f64::from(n.y))) / f64::from(n.size);
+        let r = nodes[i].rect();
+        let mut u = (p - r.min) / r.side();
         for &(ox, sx, oy, sy) in steps.iter().rev() {
             u = DVec2::new(ox + sx * u.x, oy + sy * u.y);
         }
@@ -157,8 +156,7 @@ impl<B: Brdf> WarpSampler<B> {
 
     /// The density per unit square area of the warp at leaf `i`: q_i / s_i².
     fn square_pdf(&self, leaf: usize) -> f64 {
-        let s = f64::from(self.tree.nodes()[leaf].size);
-        self.q[leaf] / (s * s)
+        self.q[leaf] / self.tree.nodes()[leaf].rect().area()
     }
 
     /// The direction for uniforms `u` ∈ [0,1)², with its pdf per unit solid angle, f and the

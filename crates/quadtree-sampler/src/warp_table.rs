@@ -216,7 +216,7 @@ impl WarpTable {
         let u = u.clamp(DVec2::ZERO, DVec2::splat(1.0 - f64::EPSILON));
         let (ux, uy) = ((u.x * SCALE) as u64, (u.y * SCALE) as u64);
         let (mut lx, mut ly, mut wx, mut wy) = (0u64, 0u64, 1u64 << 63, 1u64 << 63);
-        let (mut i, mut ix, mut iy, mut depth) = (0usize, 0u32, 0u32, 0u32);
+        let (mut i, mut ix, mut iy, mut depth) = (0usize, 0u32, 0u32, 0u8);
         let cut = |w: u64, p: u32| ((u128::from(w) * u128::from(p)) >> 32) as u64;
         loop {
             let n = self.nodes[i];
@@ -225,16 +225,15 @@ impl WarpTable {
                 if !(density > 0.0 && wx > 0 && wy > 0) {
                     return None;
                 }
-                let size = 2.0 / f64::from(1u32 << depth);
-                let min = DVec2::new(f64::from(ix), f64::from(iy)) * size - 1.0;
+                let rect = Rect::dyadic(depth, ix, iy);
                 let t = DVec2::new((ux - lx) as f64 / wx as f64, (uy - ly) as f64 / wy as f64)
                     .clamp(DVec2::ZERO, DVec2::splat(1.0 - f64::EPSILON));
                 let leaf = WarpLeaf {
                     index: i,
-                    rect: Rect::square(min.x, min.y, size),
+                    rect,
                     density,
                 };
-                return Some((min + t * size, leaf));
+                return Some((rect.min + t * rect.side(), leaf));
             }
             let cx = cut(wx, n.data);
             let col = u64::from(ux - lx >= cx);

@@ -402,9 +402,9 @@ fn leaf_path(tree: &Quadtree, i: usize) -> Vec<usize> {
     while j != i {
         let c = nodes[j].first_child as usize;
         let p = tree.nodes()[i].rect().min;
-        let n = &nodes[j];
-        let k = usize::from(p.x >= f64::from(n.x) + 0.5 * f64::from(n.size))
-            + 2 * usize::from(p.y >= f64::from(n.y) + 0.5 * f64::from(n.size));
+        let r = nodes[j].rect();
+        let half = 0.5 * (r.max.x - r.min.x);
+        let k = usize::from(p.x >= r.min.x + half) + 2 * usize::from(p.y >= r.min.y + half);
         path.push(k);
         j = c + k;
     }
