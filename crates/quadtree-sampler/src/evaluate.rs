@@ -25,7 +25,7 @@ pub(crate) struct Evaluation {
 /// 88 MiB). Past it, a new node keeps only the cells of its children's first rule
 /// application, and past twice it none: the memoised cells only save work (a forgotten one
 /// is recomputed bit for bit), so the tree does not depend on this, and the build's memory
-/// stays below about 2 × 88 MiB plus 80 bytes per node.
+/// stays below about 2 × 88 MiB plus 72 bytes per node.
 pub(crate) const CELL_CACHE_LIMIT: usize = 1 << 20;
 
 /// Parents split per batch of the breadth-first pass (between batches the evaluation budget

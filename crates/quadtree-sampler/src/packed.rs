@@ -1,6 +1,6 @@
 //! The sampling layout of a quadtree: 16 bytes per node, one cache line holds four.
 //!
-//! The build's [`Quadtree`] keeps everything a node's evaluation found, in f64 (80 bytes a
+//! The build's [`Quadtree`] keeps everything a node's evaluation found, in f64 (72 bytes a
 //! node). Sampling needs far less: at an inner node, which child to descend into; at a leaf,
 //! its bound M and which chart its proposal uses. Everything else follows from the path:
 //!
