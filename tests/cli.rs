@@ -479,6 +479,27 @@ fn sample_and_pdf_reject_bad_input_with_status_2() {
             "",
             "target_trials",
         ),
+        // Absurd counts are refused at once (no hang, no file), not run for days.
+        (
+            vec![
+                "sample",
+                "--model",
+                "phong",
+                "--wi",
+                "0,0,1",
+                "--count",
+                "18446744073709551615",
+                "--out",
+                o,
+            ],
+            "",
+            "at most 4294967296",
+        ),
+        (
+            vec!["test", "--model", "lambert", "--samples", "68719476737"],
+            "",
+            "at most 68719476736",
+        ),
         (
             vec!["pdf", "--model", "phong", "--wi", "0,0,1"],
             "0 0\n",

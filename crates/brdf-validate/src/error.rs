@@ -31,6 +31,11 @@ pub enum ValidateError {
     },
     /// A test of zero samples was asked for.
     NoSamples,
+    /// More samples per test than [`crate::MAX_SAMPLES`] were asked for.
+    TooManySamples {
+        /// The count given.
+        value: u64,
+    },
     /// A suite was given no incident direction or no cell grid.
     EmptySuite,
 }
@@ -53,6 +58,11 @@ impl fmt::Display for ValidateError {
             }
             Self::Significance { value } => write!(f, "significance {value} must be in (0, 1)"),
             Self::NoSamples => f.write_str("a test needs at least one sample"),
+            Self::TooManySamples { value } => write!(
+                f,
+                "{value} samples per test is more than the {} (2^36) a test may draw",
+                crate::MAX_SAMPLES
+            ),
             Self::EmptySuite => {
                 f.write_str("a suite needs at least one incident direction and one cell grid")
             }

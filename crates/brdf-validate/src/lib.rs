@@ -45,7 +45,8 @@ pub use report::{Against, Reason, Report, Verdict};
 pub use sampler::{Drawn, FnSampler, Sampler};
 pub use stats::{ChiSquare, Spread, chi_square, gamma_q, sidak};
 pub use suite::{
-    Event, Settings, SuiteReport, TestOutcome, WEIGHT_FLOOR, WeightTest, check, splitmix64, suite,
+    Event, MAX_SAMPLES, Settings, SuiteReport, TestOutcome, WEIGHT_FLOOR, WeightTest, check,
+    splitmix64, suite,
 };
 pub use validation::{CHUNK, Validation};
 

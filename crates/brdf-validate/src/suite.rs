@@ -17,6 +17,11 @@ use rand_core::SeedableRng;
 use std::fmt;
 use std::time::Instant;
 
+/// The most samples a test of a suite may draw: 2^36 ≈ 6.9·10¹⁰, hours of sampling at
+/// typical rates. A larger count is refused ([`ValidateError::TooManySamples`]) rather than
+/// left to run for days.
+pub const MAX_SAMPLES: u64 = 1 << 36;
+
 /// How a suite (or a [`check`]) runs its tests.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Settings {
@@ -78,6 +83,11 @@ impl Settings {
     fn check(&self, directions: usize) -> Result<(), ValidateError> {
         if self.samples == 0 {
             return Err(ValidateError::NoSamples);
+        }
+        if self.samples > MAX_SAMPLES {
+            return Err(ValidateError::TooManySamples {
+                value: self.samples,
+            });
         }
         if !(self.alpha > 0.0 && self.alpha < 1.0) {
             return Err(ValidateError::Significance { value: self.alpha });

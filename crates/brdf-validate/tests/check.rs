@@ -193,4 +193,15 @@ fn bad_settings_are_errors() {
     ] {
         assert!(check(&sampler, fcos, &[], &s).is_err(), "{s:?}");
     }
+    // An absurd count is refused at once rather than run for days.
+    for samples in [brdf_validate::MAX_SAMPLES + 1, u64::MAX] {
+        let s = Settings {
+            samples,
+            ..Settings::default()
+        };
+        assert_eq!(
+            check(&sampler, fcos, &[], &s).unwrap_err(),
+            brdf_validate::ValidateError::TooManySamples { value: samples }
+        );
+    }
 }

@@ -215,6 +215,10 @@ pub(crate) fn build<'a>(
     })
 }
 
+/// The most records one `brdf sample` writes: 2³² (64 GiB of records). A larger `--count`
+/// is refused before anything is built or written.
+pub(crate) const MAX_COUNT: u64 = 1 << 32;
+
 pub(crate) fn run_sample(
     brdf: &dyn Brdf,
     args: &SamplerArgs,
@@ -223,6 +227,11 @@ pub(crate) fn run_sample(
     out: &std::path::Path,
     mut stdout: impl Write,
 ) -> Result<(), CliError> {
+    if count > MAX_COUNT {
+        return Err(CliError::Usage(format!(
+            "--count {count}: at most {MAX_COUNT} records (2^32, 64 GiB) per run"
+        )));
+    }
     let built = build_from(brdf, args)?;
     // Complete or absent: the records go to a temporary file beside `out`, renamed over it
     // once all are written and synced; any failure removes it.

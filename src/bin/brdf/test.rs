@@ -175,6 +175,13 @@ pub(crate) fn run(
     if args.samples == 0 {
         return Err(CliError::Usage("--samples must be at least 1".into()));
     }
+    if args.samples > brdf_sampling::validate::MAX_SAMPLES {
+        return Err(CliError::Usage(format!(
+            "--samples {}: at most {} (2^36) per test",
+            args.samples,
+            brdf_sampling::validate::MAX_SAMPLES
+        )));
+    }
     if args.cells < 2 || args.cells > 4096 {
         return Err(CliError::Usage(format!(
             "--cells {}: the grid resolution must be in [2, 4096]",
