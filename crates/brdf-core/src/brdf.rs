@@ -47,6 +47,22 @@ impl BrdfSample {
         })
     }
 
+    /// The same direction and f_r reported with density `pdf` (per unit solid angle), the
+    /// weight f·cos/pdf following it: how a sampler that chose this continuous part with some
+    /// probability scales its pdf. A delta sample is returned unchanged.
+    #[inline]
+    #[must_use]
+    pub fn with_pdf(self, pdf: f32) -> Self {
+        if self.delta {
+            return self;
+        }
+        Self {
+            pdf,
+            weight: self.f * (self.wo.z / pdf),
+            ..self
+        }
+    }
+
     /// Builds the delta sample toward `wo` with the given reflectance, chosen with probability
     /// `choice_probability`.
     #[inline]

@@ -478,14 +478,9 @@ impl BakedSampler {
             ));
         }
         let uc = ((uc - p) / (1.0 - p)).min(1.0 - f32::EPSILON / 2.0);
-        Ok(self.sample_unit(role, given, uc, u, rng).map(|s| {
-            let pdf = s.pdf * (1.0 - p);
-            Sample {
-                pdf,
-                weight: s.f * (s.wo.z / pdf),
-                ..s
-            }
-        }))
+        Ok(self
+            .sample_unit(role, given, uc, u, rng)
+            .map(|s| s.with_pdf(s.pdf * (1.0 - p))))
     }
 
     /// The density with which [`BakedSampler::sample_as`] draws `sampled` as a continuous

@@ -270,13 +270,6 @@ impl BakedSampler {
             return None;
         }
         let f = self.eval_unit(role, given, wo);
-        Some(Sample {
-            wo,
-            pdf,
-            f,
-            weight: f * (wo.z / pdf),
-            delta: false,
-            trials,
-        })
+        Sample::continuous(wo, f, pdf).map(|s| Sample { trials, ..s })
     }
 }

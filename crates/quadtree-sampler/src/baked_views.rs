@@ -91,11 +91,7 @@ impl crate::DirectionSampler for BrokenAt<'_> {
             .0
             .sample_unit(Role::Importance, self.wi, uc, u, rng)?;
         let pdf = self.pdf(s.wo);
-        (pdf > 0.0).then(|| Sample {
-            pdf,
-            weight: s.f * (s.wo.z / pdf),
-            ..s
-        })
+        (pdf > 0.0).then(|| s.with_pdf(pdf))
     }
 
     fn pdf(&self, wo: Vec3) -> f32 {

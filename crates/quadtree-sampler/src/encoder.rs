@@ -53,12 +53,7 @@ pub fn refleja<B: Brdf + ?Sized, R: Rng + ?Sized>(
         let s = BrdfSample::delta(mirror(wi_l), brdf.delta_reflectance(wi_l), p_delta);
         return Ok(s.map(to_world));
     }
-    Ok(sampler.sample(rng).map(|s| {
-        let pdf = s.pdf * (1.0 - p_delta);
-        to_world(Sample {
-            pdf,
-            weight: s.f * (s.wo.z / pdf),
-            ..s
-        })
-    }))
+    Ok(sampler
+        .sample(rng)
+        .map(|s| to_world(s.with_pdf(s.pdf * (1.0 - p_delta)))))
 }

@@ -267,17 +267,7 @@ impl<B: Brdf> QuadtreeSampler<B> {
             return None;
         }
         let pdf = self.pdf_of(luminance(f), wo);
-        if pdf.is_nan() || pdf <= 0.0 {
-            return None;
-        }
-        Some(Sample {
-            wo,
-            pdf,
-            f,
-            weight: f * (wo.z / pdf),
-            delta: false,
-            trials,
-        })
+        Sample::continuous(wo, f, pdf).map(|s| Sample { trials, ..s })
     }
 
     /// The density per unit solid angle that [`QuadtreeSampler::sample`] reports for `wo`:

@@ -170,15 +170,7 @@ impl<B: Brdf> WarpSampler<B> {
             return None;
         }
         let pdf = self.pdf_at(leaf, wo);
-        let f = self.brdf.eval(self.wi, wo);
-        Some(Sample {
-            wo,
-            pdf,
-            f,
-            weight: f * (wo.z / pdf),
-            delta: false,
-            trials: 1,
-        })
+        Sample::continuous(wo, self.brdf.eval(self.wi, wo), pdf)
     }
 
     fn pdf_at(&self, leaf: usize, wo: Vec3) -> f32 {
