@@ -43,7 +43,7 @@ use crate::warp_table::WarpTable;
 use alloc::sync::Arc;
 use alloc::vec::Vec;
 use brdf_core::geometry::mirror;
-use brdf_core::{Brdf, BrdfSample, ParamSet, PeakHints, Symmetry};
+use brdf_core::{Brdf, BrdfSample, DiskMap, ParamSet, PeakHints, Symmetry};
 use core::sync::atomic::{AtomicU64, Ordering};
 use glam::{Vec2, Vec3};
 use rand_core::Rng;
@@ -143,17 +143,25 @@ impl Default for BakeConfig {
     }
 }
 
-/// One grid tree: its direction, rejection layout and warp proxy.
+/// One grid tree: its direction, rejection layout and warp proxy. Laid out for a sample's
+/// loads (each grid tree a sample meets is another one): the warp table's pointers in the
+/// first cache line, what the mixture reads of the tree (direction, liveness, map, scales) in
+/// the next, the rejection layout after.
 #[derive(Clone, Debug, PartialEq)]
+#[repr(C, align(64))]
 pub(crate) struct Slice {
+    pub(crate) warp: WarpTable,
     /// The incident direction the tree was built for (unit f32, as the tree saw it).
     pub(crate) wi: Vec3,
-    pub(crate) tree: PackedTree,
-    pub(crate) warp: WarpTable,
-    /// J/V: the rejection density per unit solid angle is Y(f)·cos θ·this.
-    pub(crate) rejection_scale: f64,
+    /// Whether the tree has volume (a mixture skips a neighbour without).
+    pub(crate) live: bool,
+    /// The tree's square ↔ hemisphere map.
+    pub(crate) map: DiskMap,
     /// J: the warp density per unit solid angle is the table's (per square area)·cos θ·this.
     pub(crate) warp_scale: f64,
+    /// J/V: the rejection density per unit solid angle is Y(f)·cos θ·this.
+    pub(crate) rejection_scale: f64,
+    pub(crate) tree: PackedTree,
 }
 
 impl Slice {
@@ -164,14 +172,17 @@ impl Slice {
 
     /// A slice from its parts (a bake's, or a file's), with its pdf scales.
     pub(crate) fn new(wi: Vec3, tree: PackedTree, warp: WarpTable) -> Self {
-        let j = f64::from(tree.map().square_area_per_projected_solid_angle());
+        let map = tree.map();
+        let j = f64::from(map.square_area_per_projected_solid_angle());
         let v = tree.volume();
         Self {
-            wi,
-            rejection_scale: if v > 0.0 { j / v } else { 0.0 },
-            warp_scale: j,
-            tree,
             warp,
+            wi,
+            live: v > 0.0,
+            map,
+            warp_scale: j,
+            rejection_scale: if v > 0.0 { j / v } else { 0.0 },
+            tree,
         }
     }
 

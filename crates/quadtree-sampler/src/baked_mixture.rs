@@ -96,7 +96,7 @@ impl BakedSampler {
             (gc, (1.0, 0.0), fold.transpose(), mc)
         };
         for (slice, w) in self.grid.neighbours(gc) {
-            if w <= 0.0 || tables.slices[slice].tree.volume() <= 0.0 {
+            if w <= 0.0 || !tables.slices[slice].live {
                 continue;
             }
             if let Some(c) = out[..n].iter_mut().find(|c| c.slice == slice) {
@@ -153,7 +153,7 @@ impl BakedSampler {
                 y * w.z * s.rejection_scale
             }
             BakedMode::Warp => {
-                let p = s.tree.map().direction_to_square(wf).as_dvec2();
+                let p = s.map.direction_to_square(wf).as_dvec2();
                 let d = match leaf {
                     Some(l) if l.contains(p) => l.density,
                     _ => s.warp.density(p),
@@ -257,7 +257,7 @@ impl BakedSampler {
                 BakedMode::Warp => {
                     let (p, leaf) = s.warp.warp(u.as_dvec2())?;
                     drawn = Some((pick, leaf));
-                    s.tree.map().square_to_direction_f64(p)?
+                    s.map.square_to_direction_f64(p)?
                 }
             };
             (c.to_local * w).as_vec3().normalize_or_zero()
