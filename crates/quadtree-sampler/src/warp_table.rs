@@ -313,8 +313,8 @@ const MAX_DEPTH: u32 = 30;
 /// (1 KiB) a table, four dependent loads fewer per look-up.
 const JUMP_LEVELS: u32 = 4;
 
-/// The jump table of a tree's sampling layout: J = min([`JUMP_LEVELS`], the tree's depth)
-/// and, for each of the 4^J squares of depth J (row-major, 2^J a side), the node whose square
+/// The jump table of a tree's sampling layout: J = min([`JUMP_LEVELS`], the tree's depth,
+/// log₄ of its node count) and, for each of the 4^J squares of depth J (row-major, 2^J a side), the node whose square
 /// holds it at depth J, or the leaf above that holds it.
 fn jump_table(nodes: &[WarpNode]) -> (Vec<u32>, u32) {
     // Children follow their parents, so one pass finds every depth.
@@ -328,7 +328,12 @@ fn jump_table(nodes: &[WarpNode]) -> (Vec<u32>, u32) {
             deepest = deepest.max(d);
         }
     }
-    let levels = deepest.min(JUMP_LEVELS);
+    // No more entries than nodes: 4^J ≤ n (the table stays within a quarter of the nodes'
+    // bytes; a small tree gains little from skipping levels anyway).
+    let mut levels = deepest.min(JUMP_LEVELS);
+    while levels > 0 && (1usize << (2 * levels)) > nodes.len() {
+        levels -= 1;
+    }
     let side = 1u32 << levels;
     let mut jump = Vec::with_capacity((side * side) as usize);
     for cy in 0..side {
@@ -471,26 +476,32 @@ mod tests {
         assert!(WarpTable::from_raw(alloc::vec![(1, 1.0), (WARP_LEAF, 1.0)]).is_err());
     }
 
-    /// A tree 9 levels deep on one side and a leaf at the root's other children, with a
-    /// share on every leaf: the look-up with its jump table finds the same leaf (the same
-    /// stored number) as a descent from the root one level at a time, at points on and off
-    /// every dyadic edge down to the deepest level.
+    /// A tree complete to depth 4 (so its jump table skips four levels) and, below one of
+    /// its depth-4 nodes, 9 levels deep, with a share on every leaf: the look-up with its
+    /// jump table finds the same leaf (the same stored number) as a descent from the root one
+    /// level at a time, at points on and off every dyadic edge down to the deepest level.
     #[test]
     fn the_jump_table_finds_the_leaf_a_plain_descent_finds() {
-        let mut shares = alloc::vec![(1u32, 1.0f32)];
-        // Level by level: children 0..3 of the branch; child (level % 4) branches again.
-        let mut next = 1u32;
-        for level in 0..9u32 {
-            next += 4;
-            for k in 0..4u32 {
-                let link = if k == level % 4 && level < 8 {
-                    next
-                } else {
-                    WARP_LEAF
-                };
-                shares.push((link, 0.1 + 0.05 * k as f32 + 0.01 * level as f32));
+        // Breadth-first: node i splits when it is above depth 4, or is on the chain (the
+        // first child of a depth-4 node's descendants, to depth 8).
+        let mut shares: Vec<(u32, f32)> = alloc::vec![(WARP_LEAF, 1.0)];
+        let mut depth = alloc::vec![0u32];
+        let mut chain = alloc::vec![false];
+        let mut i = 0;
+        while i < shares.len() {
+            let (d, on_chain) = (depth[i], chain[i]);
+            let splits = d < 4 || (on_chain && d < 9) || (d == 4 && i == 200);
+            if splits {
+                shares[i].0 = shares.len() as u32;
+                for k in 0..4u32 {
+                    shares.push((WARP_LEAF, 0.1 + 0.05 * k as f32 + 0.01 * d as f32));
+                    depth.push(d + 1);
+                    chain.push((on_chain || (d == 4 && i == 200)) && k == d % 4);
+                }
             }
+            i += 1;
         }
+        assert_eq!(depth.iter().max(), Some(&9));
         let t = WarpTable::from_raw(shares).unwrap();
         assert_eq!(t.jump_levels, JUMP_LEVELS);
         let plain = |p: DVec2| {
