@@ -314,8 +314,8 @@ const MAX_DEPTH: u32 = 30;
 const JUMP_LEVELS: u32 = 4;
 
 /// The jump table of a tree's sampling layout: J = min([`JUMP_LEVELS`], the tree's depth,
-/// log₄ of its node count) and, for each of the 4^J squares of depth J (row-major, 2^J a side), the node whose square
-/// holds it at depth J, or the leaf above that holds it.
+/// log₄ of its node count) and, for each of the 4^J squares of depth J (row-major, 2^J a
+/// side), the node whose square holds it at depth J, or the leaf above that holds it.
 fn jump_table(nodes: &[WarpNode]) -> (Vec<u32>, u32) {
     // Children follow their parents, so one pass finds every depth.
     let mut depth = alloc::vec![0u32; nodes.len()];
