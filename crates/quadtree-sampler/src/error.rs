@@ -82,7 +82,7 @@ impl From<DirectionError> for BuildError {
     }
 }
 
-/// Why a [`BakedSampler`] could not be built.
+/// Why a [`crate::BakedSampler`] could not be built.
 #[derive(Clone, Debug, PartialEq)]
 pub enum BakeError {
     /// `theta_steps` is below 2.
@@ -146,7 +146,7 @@ impl fmt::Display for BakeError {
 
 impl core::error::Error for BakeError {}
 
-/// Why a call on a [`BakedSampler`] has no answer.
+/// Why a call on a [`crate::BakedSampler`] has no answer.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum BakedError {
     /// The given direction is NaN, infinite, zero or below the horizon.
