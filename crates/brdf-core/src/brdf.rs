@@ -47,15 +47,14 @@ impl BrdfSample {
         })
     }
 
-    /// The same direction and f_r reported with density `pdf` (per unit solid angle), the
-    /// weight f·cos/pdf following it: how a sampler that chose this continuous part with some
-    /// probability scales its pdf. A delta sample is returned unchanged.
+    /// The same continuous sample (direction and f_r) reported with density `pdf` (per unit
+    /// solid angle), the weight f·cos/pdf following it: how a sampler that chose the
+    /// continuous part with some probability scales its pdf. Not for a delta sample, whose
+    /// pdf is a probability and whose weight is built by [`BrdfSample::delta`].
     #[inline]
     #[must_use]
     pub fn with_pdf(self, pdf: f32) -> Self {
-        if self.delta {
-            return self;
-        }
+        debug_assert!(!self.delta, "with_pdf on a delta sample");
         Self {
             pdf,
             weight: self.f * (self.wo.z / pdf),

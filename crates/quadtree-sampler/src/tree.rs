@@ -271,7 +271,8 @@ impl Quadtree {
         parents: &[u32],
         pending: &mut Vec<Option<Cell>>,
     ) -> Vec<u32> {
-        let mut rects = Vec::with_capacity(4 * parents.len());
+        // Each new node's cell: (depth, column, row).
+        let mut children = Vec::with_capacity(4 * parents.len());
         let mut inherited = Vec::with_capacity(4 * parents.len());
         let first_new = self.nodes.len() as u32;
         for (k, &p) in parents.iter().enumerate() {
@@ -280,17 +281,17 @@ impl Quadtree {
             let cells = pending[p as usize].take();
             ctx.forget(&cells);
             inherited.extend(cells.map_or([None, None, None, None], Cell::into_quads));
-            for k in 0..4 {
-                let (column, row) = (
+            children.extend((0..4).map(|k| {
+                (
+                    n.depth + 1,
                     2 * n.column + child_column(k) as u32,
                     2 * n.row + child_row(k) as u32,
-                );
-                let depth = n.depth + 1;
-                rects.push((Rect::dyadic(depth, column, row), column, row, depth));
-            }
+                )
+            }));
         }
-        let evals = ctx.evaluate_all(rects.iter().map(|r| r.0).zip(inherited).collect());
-        for ((_, column, row, depth), (e, cells)) in rects.into_iter().zip(evals) {
+        let rects = children.iter().map(|&(d, c, r)| Rect::dyadic(d, c, r));
+        let evals = ctx.evaluate_all(rects.zip(inherited).collect());
+        for ((depth, column, row), (e, cells)) in children.into_iter().zip(evals) {
             pending.push(cells);
             self.nodes.push(Node {
                 column,
