@@ -46,6 +46,15 @@ pub(crate) struct Component {
     pub(crate) to_local: DMat3,
 }
 
+impl Component {
+    /// A placeholder for [`BakedSampler::components`] to overwrite.
+    pub(crate) const NONE: Self = Self {
+        slice: 0,
+        weight: 0.0,
+        to_local: DMat3::IDENTITY,
+    };
+}
+
 impl BakedSampler {
     pub(crate) fn tables_for(&self, role: Role) -> (&Tables, bool) {
         match (role, &self.adjoint) {
@@ -64,15 +73,17 @@ impl BakedSampler {
         }
     }
 
-    /// The components of the mixture at a given (checked, unit) direction.
+    /// The components of the mixture at a given (checked, unit) direction: written to the
+    /// front of `out` (filled by the caller, so they are not copied on their way back),
+    /// their number returned.
     #[inline(always)]
-    pub(crate) fn components(&self, tables: &Tables, given: Vec3) -> ([Component; 4], usize) {
+    pub(crate) fn components(
+        &self,
+        tables: &Tables,
+        given: Vec3,
+        out: &mut [Component; 4],
+    ) -> usize {
         let g = given.as_dvec3();
-        let mut out = [Component {
-            slice: 0,
-            weight: 0.0,
-            to_local: DMat3::IDENTITY,
-        }; 4];
         let mut n = 0;
         let mut sum = 0.0;
         // Isotropic: fold by the rotation about z by −φ (from cos φ and sin φ without
@@ -125,7 +136,7 @@ impl BakedSampler {
                 c.weight *= inv;
             }
         }
-        (out, n)
+        n
     }
 
     /// Component `c`'s density at local `wo`, per unit solid angle. `leaf`: the warp leaf the
@@ -169,7 +180,8 @@ impl BakedSampler {
     /// (renormalising in f32 could move a direction on a leaf's edge into its neighbour).
     pub(crate) fn pdf_unit(&self, role: Role, given: Vec3, sampled: Vec3) -> f32 {
         let (tables, adjoint) = self.tables_for(role);
-        let (comps, n) = self.components(tables, given);
+        let mut comps = [Component::NONE; 4];
+        let n = self.components(tables, given, &mut comps);
         self.pdf_of(tables, adjoint, &comps[..n], sampled, None)
     }
 
@@ -219,7 +231,8 @@ impl BakedSampler {
         rng: &mut R,
     ) -> Option<Sample> {
         let (tables, adjoint) = self.tables_for(role);
-        let (comps, n) = self.components(tables, given);
+        let mut comps = [Component::NONE; 4];
+        let n = self.components(tables, given, &mut comps);
         let delta = if n == 0 { 1.0 } else { self.config.defensive };
         let uc = f64::from(uc.clamp(0.0, 1.0));
         let mut trials = 1;

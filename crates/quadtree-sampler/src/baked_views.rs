@@ -4,6 +4,7 @@
 //! control whose reported pdf drops a neighbour ([`BrokenPdf`]).
 
 use crate::baked::{BakedMode, BakedSampler, Role};
+use crate::baked_mixture::Component;
 use crate::error::BakedError;
 use crate::sampler::Sample;
 use alloc::sync::Arc;
@@ -50,7 +51,8 @@ impl BrokenPdf {
     #[must_use]
     pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
         let b = &self.0;
-        let (mut comps, n) = b.components(&b.forward, wi);
+        let mut comps = [Component::NONE; 4];
+        let n = b.components(&b.forward, wi, &mut comps);
         if n < 2 {
             return b.pdf_unit(Role::Importance, wi, wo);
         }
