@@ -85,6 +85,8 @@ pub struct BakeGrid {
     thetas: Vec<f64>,
     /// φi of each column, radians.
     phis: Vec<f64>,
+    /// 1/(θ step): rows per radian, so a query's row position is one multiply.
+    rows_per_radian: f64,
 }
 
 impl BakeGrid {
@@ -96,7 +98,7 @@ impl BakeGrid {
         let domain = PhiDomain::of(symmetry);
         let t_max = GRID_THETA_MAX_DEG.to_radians();
         let nt = usize::from(theta_steps);
-        let thetas = (0..nt)
+        let thetas: Vec<f64> = (0..nt)
             .map(|i| t_max * i as f64 / (nt - 1) as f64)
             .collect();
         let (lo, hi) = domain.range();
@@ -125,10 +127,12 @@ impl BakeGrid {
                     .collect()
             }
         };
+        let rows_per_radian = 1.0 / (thetas[1] - thetas[0]);
         let grid = Self {
             domain,
             thetas,
             phis,
+            rows_per_radian,
         };
         if grid.len() > MAX_TREES {
             return Err(BakeError::TooManyTrees(grid.len()));
@@ -194,8 +198,7 @@ impl BakeGrid {
     pub(crate) fn neighbours(&self, w: DVec3) -> [(usize, f64); 4] {
         let theta = fast_acos(w.z);
         let nt = self.thetas.len();
-        let dt = self.thetas[1] - self.thetas[0];
-        let t = (theta / dt).clamp(0.0, (nt - 1) as f64);
+        let t = (theta * self.rows_per_radian).clamp(0.0, (nt - 1) as f64);
         let i = (t as usize).min(nt - 2);
         let ft = (t - i as f64).clamp(0.0, 1.0);
         let np = self.phis.len();

@@ -394,7 +394,7 @@ const JUMP_LEVELS: u32 = 4;
 /// (phong n = 1000: 3.8 of the 6.8 levels its samples descend; cook-torrance m = 0.1: 2.8
 /// of 5.0; ward α = 0.05: 2.5 of 4.6). 16 × 16 (4.9, 3.5, 3.2) was no faster in the baked
 /// benches, at four times the bytes.
-const GUIDE_BITS: u32 = 3;
+const GUIDE_BITS: u32 = 4;
 
 /// The jump table of a tree's sampling layout: J = min([`JUMP_LEVELS`], the tree's depth,
 /// log₄ of its node count) and, for each of the 4^J squares of depth J (row-major, 2^J a
