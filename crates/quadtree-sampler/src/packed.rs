@@ -1,4 +1,5 @@
-//! The sampling layout of a quadtree: 16 bytes per node, one cache line holds four.
+//! The sampling layout of a quadtree: 16 bytes per node, one cache line holds four (and a
+//! selection guide of at most 4 KiB).
 //!
 //! The build's [`Quadtree`] keeps everything a node's evaluation found, in f64 (72 bytes a
 //! node). Sampling needs far less: at an inner node, which child to descend into; at a leaf,
@@ -16,7 +17,10 @@
 //!   where its children 1, 2 and 3 start. One 31-bit uniform descends with three integer
 //!   comparisons per level and no arithmetic on it at all (the seed's `seleccionarRegion`,
 //!   which sums four v1 and rescales the uniform with a division at every level, is the same
-//!   distribution up to rounding).
+//!   distribution up to rounding). It starts a few levels down: a guide holds, for each of
+//!   2^g equal parts of the interval (g ≤ 8, and 2^g ≤ the node count: 4 KiB a tree at
+//!   most), the deepest node whose interval holds the whole part — where every x of that
+//!   part goes anyway — and its cell, so the leaf and its square are the same either way.
 //!
 //! The cuts between leaves are their cumulative v1 shares rounded to whole units, with every
 //! leaf of v1 > 0 kept at least one unit wide (nothing the tree covers becomes unreachable)
@@ -107,6 +111,67 @@ pub struct Selected {
     pub depth: u8,
 }
 
+/// A node [`PackedTree::select`] starts from, with its cell (depth, column, row).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(C)]
+struct SelectStart {
+    node: u32,
+    depth: u32,
+    column: u32,
+    row: u32,
+}
+
+impl SelectStart {
+    /// The root, whose interval is all of [0, 2³¹).
+    const ROOT: Self = Self {
+        node: 0,
+        depth: 0,
+        column: 0,
+        row: 0,
+    };
+}
+
+/// The most bits of the 31-bit uniform the selection's guide reads: 256 parts (4 KiB), and
+/// never more parts than the tree has nodes.
+const GUIDE_BITS: u32 = 8;
+
+/// The selection's guide for a checked tree (see [`PackedTree`]'s `guide`): for each part
+/// [j, j + 1)·2^(31 − bits) of the fixed-point interval, the descent every x in it takes,
+/// as far as they all take it.
+fn select_guide(nodes: &[PackedNode]) -> (Vec<SelectStart>, u32) {
+    let mut bits = 0;
+    while bits < GUIDE_BITS && (2usize << bits) <= nodes.len() {
+        bits += 1;
+    }
+    let width = ONE >> bits;
+    let child = |n: &PackedNode, x: u32| {
+        usize::from(x >= n.data[0]) + usize::from(x >= n.data[1]) + usize::from(x >= n.data[2])
+    };
+    let guide = (0..1u32 << bits)
+        .map(|j| {
+            let (first, last) = (j * width, j * width + (width - 1));
+            let mut at = SelectStart::ROOT;
+            loop {
+                let n = &nodes[at.node as usize];
+                if n.is_leaf() {
+                    break at;
+                }
+                let k = child(n, first);
+                if child(n, last) != k {
+                    break at;
+                }
+                at = SelectStart {
+                    node: n.link + k as u32,
+                    depth: at.depth + 1,
+                    column: 2 * at.column + child_column(k) as u32,
+                    row: 2 * at.row + child_row(k) as u32,
+                };
+            }
+        })
+        .collect();
+    (guide, bits)
+}
+
 /// One leaf of a [`PackedTree`] as inspection sees it (the viewer, exports, statistics):
 /// everything sampling uses, read from the packed layout itself.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -149,6 +214,11 @@ impl PackedLeaf {
 #[derive(Clone, Debug, PartialEq)]
 pub struct PackedTree {
     nodes: Vec<PackedNode>,
+    /// Where [`PackedTree::select`] starts for each of the 2^`guide_bits` equal parts of the
+    /// fixed-point unit interval: the deepest node whose interval holds the whole part, and
+    /// its cell. Derived from the nodes.
+    guide: Vec<SelectStart>,
+    guide_bits: u32,
     /// The proposal boxes of the rim leaves (non-square charts), in tree order.
     rim: Vec<Proposal>,
     map: DiskMap,
@@ -256,8 +326,11 @@ impl PackedTree {
                 }
             })
             .collect::<Vec<_>>();
+        let (guide, guide_bits) = select_guide(&nodes);
         let mut packed = Self {
             nodes,
+            guide,
+            guide_bits,
             rim: Vec::new(),
             map: tree.map(),
             volume: tree.volume(),
@@ -310,7 +383,8 @@ impl PackedTree {
         let mut s = TreeStats {
             nodes: self.nodes.len(),
             bytes: core::mem::size_of_val(self.nodes.as_slice())
-                + core::mem::size_of_val(self.rim.as_slice()),
+                + core::mem::size_of_val(self.rim.as_slice())
+                + core::mem::size_of_val(self.guide.as_slice()),
             budget_exhausted,
             ..TreeStats::default()
         };
@@ -402,23 +476,29 @@ impl PackedTree {
     #[must_use]
     pub fn select_fixed(&self, x: u32) -> Selected {
         let x = x & (ONE - 1);
-        let (mut i, mut depth) = (0usize, 0u8);
-        let (mut min_x, mut min_y, mut size) = (-1.0f64, -1.0f64, 2.0f64);
+        self.select_from(self.guide[(x >> (31 - self.guide_bits)) as usize], x)
+    }
+
+    /// The selection of `x` (< 2³¹) from `start`, a node whose interval holds it.
+    #[inline(always)]
+    fn select_from(&self, start: SelectStart, x: u32) -> Selected {
+        let (mut i, mut depth) = (start.node as usize, start.depth);
+        let (mut column, mut row) = (start.column, start.row);
         loop {
             let n = self.nodes[i];
             if n.is_leaf() {
+                let depth = depth as u8;
                 return Selected {
                     index: i,
-                    rect: Rect::square(min_x, min_y, size),
+                    rect: Rect::dyadic(depth, column, row),
                     depth,
                 };
             }
             let k = usize::from(x >= n.data[0])
                 + usize::from(x >= n.data[1])
                 + usize::from(x >= n.data[2]);
-            size *= 0.5;
-            min_x += size * child_column(k) as f64;
-            min_y += size * child_row(k) as f64;
+            column = 2 * column + child_column(k) as u32;
+            row = 2 * row + child_row(k) as u32;
             depth += 1;
             i = n.link as usize + k;
         }
@@ -551,9 +631,12 @@ impl PackedTree {
                 link: w[0],
                 data: [w[1], w[2], w[3]],
             })
-            .collect();
+            .collect::<Vec<_>>();
+        let (guide, guide_bits) = select_guide(&nodes);
         let mut packed = Self {
             nodes,
+            guide,
+            guide_bits,
             rim: Vec::new(),
             map,
             volume,
@@ -583,6 +666,43 @@ mod tests {
     #[test]
     fn a_packed_node_is_16_bytes() {
         assert_eq!(core::mem::size_of::<PackedNode>(), 16);
+    }
+
+    /// The selection through the guide finds the leaf (and square) the descent from the
+    /// root finds, for x on and beside every child boundary and every guide part's edges,
+    /// on a tree deep enough that most parts start below the root.
+    #[test]
+    fn the_guide_selects_as_the_root_does() {
+        let phong =
+            brdf_core::models::Phong::new(glam::Vec3::ZERO, glam::Vec3::ONE, 1000.0).unwrap();
+        let wi = glam::Vec3::new(0.6, 0.0, 0.8);
+        let tree = Quadtree::new(&phong, wi, crate::BuildConfig::default()).unwrap();
+        let packed = PackedTree::new(&tree);
+        assert_eq!(packed.guide_bits, GUIDE_BITS);
+        let below_root = packed.guide.iter().filter(|g| g.depth >= 2).count();
+        assert!(below_root > packed.guide.len() / 2, "{below_root}");
+        let mut xs = alloc::vec![0u32, ONE - 1];
+        for n in packed.nodes.iter().filter(|n| !n.is_leaf()) {
+            for &c in &n.data {
+                xs.extend([c.saturating_sub(1), c, c.saturating_add(1)]);
+            }
+        }
+        let width = ONE >> packed.guide_bits;
+        for j in 0..1u32 << packed.guide_bits {
+            xs.extend([
+                j * width,
+                j * width + 1,
+                j * width + width / 3,
+                j * width + width - 1,
+            ]);
+        }
+        for x in xs.into_iter().filter(|&x| x < ONE) {
+            assert_eq!(
+                packed.select_fixed(x),
+                packed.select_from(SelectStart::ROOT, x),
+                "x = {x}"
+            );
+        }
     }
 
     #[test]

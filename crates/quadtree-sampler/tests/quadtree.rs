@@ -320,15 +320,22 @@ fn packed_selection_matches_v1_and_reaches_every_live_leaf() {
         let tree =
             Quadtree::new(&*b, dir(theta, 10.0), BuildConfig::with_target_trials(1.3)).unwrap();
         let packed = PackedTree::new(&tree);
-        // 16 bytes a node, and 40 a leaf sampled in a rim chart (its box, found once).
+        // 16 bytes a node, 40 a leaf sampled in a rim chart (its box, found once), and 16
+        // a selection-guide entry: the largest power of two up to the node count, at most 256.
         let rim_leaves = tree
             .leaves()
             .filter(|(_, n)| n.proposal.chart != Chart::Square)
             .count();
+        let n = tree.nodes().len();
+        let guide = (0..=8)
+            .map(|b| 1usize << b)
+            .filter(|&g| g <= n)
+            .max()
+            .unwrap();
         assert_eq!(
             packed.stats().bytes,
-            16 * tree.nodes().len() + 40 * rim_leaves,
-            "{name}: 16 bytes a node, 40 a rim leaf"
+            16 * n + 40 * rim_leaves + 16 * guide,
+            "{name}: 16 bytes a node, 40 a rim leaf, 16 a guide entry"
         );
         let p = packed.selection_probabilities();
         let volume = tree.volume();
