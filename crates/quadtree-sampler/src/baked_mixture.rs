@@ -37,6 +37,26 @@ use core::sync::atomic::Ordering;
 use glam::{DMat3, DQuat, DVec3, Vec2, Vec3};
 use rand_core::Rng;
 
+/// What the draw of a sample knows of its own component's density.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Drawn {
+    /// Warp mode: the leaf it was drawn in. Its density is the one [`WarpTable::density`]
+    /// finds wherever the direction maps back into that leaf (the same stored number), so
+    /// only a point that rounding moved out of it descends.
+    Warp(WarpLeaf),
+    /// Rejection mode: the density itself, from the accepted trial's evaluation at the very
+    /// point `component_pdf` evaluates.
+    Density(f64),
+}
+
+/// A tree-frame direction in the local frame, as a sample returns it: unit in f64 (a
+/// rotation of a unit vector), and rounding to f32 keeps it as near unit as renormalising
+/// in f32 would.
+#[inline(always)]
+fn to_local(c: &Component, w: Vec3) -> Vec3 {
+    (c.to_local * w.as_dvec3()).as_vec3()
+}
+
 /// `v` normalised (0 for a zero, infinite or NaN `v`), a deterministic function of its bits
 /// that `pdf` and the pdf a sample carries share. A sample's direction, and almost every
 /// direction a caller asks about, is unit to f32 rounding: there |v|² = 1 + e with
@@ -155,10 +175,9 @@ impl BakedSampler {
         n
     }
 
-    /// Component `c`'s density at local `wo`, per unit solid angle. `leaf`: the warp leaf the
-    /// sample being scored was drawn in, when `c` is the component that drew it — its density
-    /// is the one [`WarpTable::density`] would find wherever `wo` maps back into that leaf
-    /// (the same stored number), so only a point that rounding moved out of it descends.
+    /// Component `c`'s density at local `wo`, per unit solid angle. `drawn`: what the draw
+    /// of the sample being scored already knows, when `c` is the component that drew it
+    /// (see [`Drawn`]); it changes how the density is found, never its value.
     #[inline]
     pub(crate) fn component_pdf(
         &self,
@@ -166,8 +185,11 @@ impl BakedSampler {
         adjoint: bool,
         c: &Component,
         wo: DVec3,
-        leaf: Option<&WarpLeaf>,
+        drawn: Option<&Drawn>,
     ) -> f64 {
+        if let Some(&Drawn::Density(d)) = drawn {
+            return d;
+        }
         let w = c.to_local.transpose() * wo;
         if w.z <= 0.0 {
             return 0.0;
@@ -181,8 +203,8 @@ impl BakedSampler {
             }
             BakedMode::Warp => {
                 let p = s.map.direction_to_square(wf).as_dvec2();
-                let d = match leaf {
-                    Some(l) if l.contains(p) => l.density,
+                let d = match drawn {
+                    Some(Drawn::Warp(l)) if l.contains(p) => l.density,
                     _ => s.warp.density(p),
                 };
                 d * s.warp_scale * w.z
@@ -202,15 +224,15 @@ impl BakedSampler {
     }
 
     /// The mixture's density at `sampled` from its components (the one expression behind
-    /// `pdf` and the pdf a sample carries; `drawn`: the component and warp leaf a sample
-    /// came from, which changes how its density is found, never its value).
+    /// `pdf` and the pdf a sample carries; `drawn`: the component a sample came from and what
+    /// its draw knows, which changes how its density is found, never its value).
     pub(crate) fn pdf_of(
         &self,
         tables: &Tables,
         adjoint: bool,
         comps: &[Component],
         sampled: Vec3,
-        drawn: Option<(usize, WarpLeaf)>,
+        drawn: Option<(usize, Drawn)>,
     ) -> f32 {
         let n = comps.len();
         let wo = near_unit(sampled.as_dvec3());
@@ -221,8 +243,8 @@ impl BakedSampler {
         let delta = if n == 0 { 1.0 } else { self.config.defensive };
         let mut p = delta * wo.z * core::f64::consts::FRAC_1_PI;
         for (k, c) in comps[..n].iter().enumerate() {
-            let leaf = drawn.as_ref().filter(|d| d.0 == k).map(|d| &d.1);
-            p += (1.0 - delta) * c.weight * self.component_pdf(tables, adjoint, c, wo, leaf);
+            let known = drawn.as_ref().filter(|d| d.0 == k).map(|d| &d.1);
+            p += (1.0 - delta) * c.weight * self.component_pdf(tables, adjoint, c, wo, known);
         }
         p as f32
     }
@@ -267,31 +289,49 @@ impl BakedSampler {
             }
             let c = &comps[pick];
             let s = &tables.slices[c.slice];
-            let w = match self.mode {
+            match self.mode {
                 BakedMode::Rejection => {
                     let leaf = s.tree.select(crate::sampler::descent_uniform(u));
-                    let Some((_, w, _, t)) = rejection_in_leaf(
-                        &s.tree,
-                        &leaf,
-                        |w| self.table_eval(adjoint, s.wi, w),
-                        rng,
-                        &self.violations,
-                    ) else {
+                    // Each trial's point is judged by f where the pdf will look for it: the
+                    // point carried to the local frame as the sample would be, and back as
+                    // `component_pdf` carries it (the same expressions, so the same bits;
+                    // within rounding of the point itself). The accepted trial's f then gives
+                    // this component's density without evaluating the model again.
+                    let known = core::cell::Cell::new(None);
+                    let judge = |w: Vec3| {
+                        let wo = to_local(c, w);
+                        let back = c.to_local.transpose() * near_unit(wo.as_dvec3());
+                        if back.z <= 0.0 || wo.z <= 0.0 {
+                            // Lost after the rotation (or on the horizon): judged as drawn.
+                            known.set(None);
+                            return self.table_eval(adjoint, s.wi, w);
+                        }
+                        let f = self.table_eval(adjoint, s.wi, back.as_vec3());
+                        let y = f64::from(luminance(f));
+                        known.set(Some((wo, y * back.z * s.rejection_scale)));
+                        f
+                    };
+                    let Some((_, w, _, t)) =
+                        rejection_in_leaf(&s.tree, &leaf, judge, rng, &self.violations)
+                    else {
                         self.gave_up.fetch_add(1, Ordering::Relaxed);
                         return None;
                     };
                     trials = t;
-                    w.as_dvec3()
+                    match known.get() {
+                        Some((wo, d)) => {
+                            drawn = Some((pick, Drawn::Density(d)));
+                            wo
+                        }
+                        None => to_local(c, w),
+                    }
                 }
                 BakedMode::Warp => {
                     let (p, leaf) = s.warp.warp(u.as_dvec2())?;
-                    drawn = Some((pick, leaf));
-                    s.map.square_to_direction_f64(p)?
+                    drawn = Some((pick, Drawn::Warp(leaf)));
+                    (c.to_local * s.map.square_to_direction_f64(p)?).as_vec3()
                 }
-            };
-            // Unit in f64 (a rotation of a unit vector); rounding to f32 keeps it as near unit
-            // as renormalising in f32 would.
-            (c.to_local * w).as_vec3()
+            }
         };
         if !above_horizon(wo) {
             return None;
