@@ -187,7 +187,8 @@ impl Slice {
     }
 
     fn bytes(&self) -> usize {
-        core::mem::size_of_val(self.tree.nodes()) + self.warp.bytes() + core::mem::size_of::<Self>()
+        // The packed tree's own count: its nodes, rim boxes and selection guide.
+        self.tree.stats().bytes + self.warp.bytes() + core::mem::size_of::<Self>()
     }
 }
 

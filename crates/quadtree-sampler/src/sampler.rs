@@ -84,7 +84,7 @@ pub struct LeafSample {
 /// `muestrear` on a packed tree for any f (the quadtree's own model, or a baked sampler's
 /// grid model): a point uniform in the leaf's proposal box, a height uniform in [0, M);
 /// accept when the height is below Y(f)·(chart Jacobian). Returns the accepted chart point,
-/// the unit f32 direction a caller sees, f there (RGB, evaluated once per trial at exactly
+/// the f32 direction a caller sees (the point's unit f64 direction, rounded), f there (RGB, evaluated once per trial at exactly
 /// that vector) and the trials; `None` after [`MAX_TRIALS`] or for a leaf that holds
 /// nothing. Every f > M met is counted in `violations`. One 64-bit draw places the point
 /// (32 bits per axis: 2⁻³² of the leaf's side) and one more the height.
@@ -110,7 +110,9 @@ pub(crate) fn rejection_in_leaf<R: Rng + ?Sized>(
         let Some(c) = prop.point(tree.map(), &leaf.rect, q) else {
             continue;
         };
-        let wo = c.w.as_vec3().normalize_or_zero();
+        // The chart's direction is unit in f64; rounded to f32 it is as near unit as an f32
+        // renormalisation would make it, without a square root and a division a trial.
+        let wo = c.w.as_vec3();
         let f = eval(wo);
         let h = f64::from(luminance(f)) * c.jacobian;
         if h > m {

@@ -272,7 +272,13 @@ impl WarpTable {
             }
         }
         let (jump, jump_levels) = jump_table(&nodes);
-        let (guide, guide_bits) = guide_table(&nodes, jump_levels.min(GUIDE_BITS));
+        // At most one guide entry (40 bytes) for every two nodes (20 bytes each with their
+        // shares): the guide never more than doubles what the tree itself holds.
+        let mut guide_bits = jump_levels.min(GUIDE_BITS);
+        while guide_bits > 0 && 2 << (2 * guide_bits) > nodes.len() {
+            guide_bits -= 1;
+        }
+        let (guide, guide_bits) = guide_table(&nodes, guide_bits);
         Self {
             nodes,
             guide,
@@ -388,12 +394,12 @@ const MAX_DEPTH: u32 = 30;
 /// (1 KiB) a table, four dependent loads fewer per look-up.
 const JUMP_LEVELS: u32 = 4;
 
-/// The most bits of each coordinate of u the warp's guide table reads: 8 × 8 squares,
-/// 64 entries (2.5 KiB) a table at most, and never more entries than the tree has nodes (the
-/// jump table's rule). On the default grid a sharp lobe's warp starts 2.5–3.8 levels down
-/// (phong n = 1000: 3.8 of the 6.8 levels its samples descend; cook-torrance m = 0.1: 2.8
-/// of 5.0; ward α = 0.05: 2.5 of 4.6). 16 × 16 (4.9, 3.5, 3.2) was no faster in the baked
-/// benches, at four times the bytes.
+/// The most bits of each coordinate of u the warp's guide table reads: 16 × 16 squares,
+/// 256 entries (10 KiB) a table at most, and never more entries than half the tree's nodes.
+/// With 16 × 16 squares everywhere, the default grid's sharp lobes start their warp 3.2–4.9
+/// levels down (phong n = 1000: 4.9 of the 6.8 levels its samples descend; cook-torrance
+/// m = 0.1: 3.5 of 5.0; ward α = 0.05: 3.2 of 4.6); with 8 × 8, 2.5–3.8 levels down, and an
+/// interleaved timing put phong's baked warp sample 10 ns slower.
 const GUIDE_BITS: u32 = 4;
 
 /// The jump table of a tree's sampling layout: J = min([`JUMP_LEVELS`], the tree's depth,
@@ -616,7 +622,8 @@ mod tests {
     #[test]
     fn the_guide_table_warps_as_the_root_does() {
         let t = deep_table();
-        assert_eq!(t.guide_bits, GUIDE_BITS);
+        // 8 × 8 squares: the largest guide with no more entries than half its 361 nodes.
+        assert_eq!((t.guide_bits, t.nodes.len()), (3, 361));
         let skipped = t.guide.iter().filter(|e| e.node != 0).count();
         assert!(
             skipped > t.guide.len() / 2,
