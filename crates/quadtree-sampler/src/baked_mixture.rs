@@ -19,7 +19,8 @@
 //! importance sampling at any (wi, wo). With p_k:
 //! - **rejection**: Y(f_r(wi_k, w))·cos θ·J/V_k, tree k's own density (exact up to its leaf
 //!   integrals, as for [`crate::QuadtreeSampler`]); `u` descends the tree, the rejection trials
-//!   draw from an RNG; one model evaluation per neighbour for the pdf;
+//!   draw from an RNG; one model evaluation per neighbour for the pdf (a sample's own
+//!   neighbour reuses its accepted trial's, made at the very point the pdf looks at);
 //! - **warp**: tree k's piecewise-constant proxy (each leaf's share of the volume spread
 //!   uniformly over its square), a deterministic function of (uc, u) — stratified and
 //!   low-discrepancy points stay stratified — and its pdf is a table look-up per neighbour,
