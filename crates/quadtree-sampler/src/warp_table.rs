@@ -112,8 +112,9 @@ impl WarpLeaf {
     }
 }
 
-/// The warp proxy of one tree (see the module doc). What a warp and a look-up read comes
-/// first (one cache line where the table is aligned to one, as a baked sampler's are).
+/// The warp proxy of one tree (see the module doc). What a warp reads comes first (one
+/// cache line where the table is aligned to one, as a baked sampler's are), then the
+/// look-up's jump table.
 #[derive(Clone, Debug, PartialEq)]
 #[repr(C)]
 pub(crate) struct WarpTable {
