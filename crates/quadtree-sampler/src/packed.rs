@@ -18,8 +18,8 @@
 //!   comparisons per level and no arithmetic on it at all (the seed's `seleccionarRegion`,
 //!   which sums four v1 and rescales the uniform with a division at every level, is the same
 //!   distribution up to rounding). It starts a few levels down: a guide holds, for each of
-//!   2^g equal parts of the interval (g ≤ 8, and 2^g ≤ the node count: 4 KiB a tree at
-//!   most), the deepest node whose interval holds the whole part — where every x of that
+//!   2^g equal parts of the interval (g ≤ 8, and 2^g ≤ half the node count: 4 KiB a tree
+//!   at most), the deepest node whose interval holds the whole part — where every x of that
 //!   part goes anyway — and its cell, so the leaf and its square are the same either way.
 //!
 //! The cuts between leaves are their cumulative v1 shares rounded to whole units, with every
@@ -132,7 +132,7 @@ impl SelectStart {
 }
 
 /// The most bits of the 31-bit uniform the selection's guide reads: 256 parts (4 KiB), and
-/// never more parts than the tree has nodes.
+/// never more parts than half the tree's nodes (the guide adds at most 8 bytes a node).
 const GUIDE_BITS: u32 = 8;
 
 /// The selection's guide for a checked tree (see [`PackedTree`]'s `guide`): for each part
@@ -140,7 +140,7 @@ const GUIDE_BITS: u32 = 8;
 /// as far as they all take it.
 fn select_guide(nodes: &[PackedNode]) -> (Vec<SelectStart>, u32) {
     let mut bits = 0;
-    while bits < GUIDE_BITS && (2usize << bits) <= nodes.len() {
+    while bits < GUIDE_BITS && (4usize << bits) <= nodes.len() {
         bits += 1;
     }
     let width = ONE >> bits;
@@ -678,7 +678,11 @@ mod tests {
         let wi = glam::Vec3::new(0.6, 0.0, 0.8);
         let tree = Quadtree::new(&phong, wi, crate::BuildConfig::default()).unwrap();
         let packed = PackedTree::new(&tree);
-        assert_eq!(packed.guide_bits, GUIDE_BITS);
+        // The largest guide with no more parts than half the nodes, and a real one.
+        let n = packed.nodes.len();
+        let want = (0..=GUIDE_BITS).filter(|&b| (2usize << b) <= n).max();
+        assert_eq!(Some(packed.guide_bits), want, "{n} nodes");
+        assert!(packed.guide_bits >= 5, "{n} nodes");
         let below_root = packed.guide.iter().filter(|g| g.depth >= 2).count();
         assert!(below_root > packed.guide.len() / 2, "{below_root}");
         let mut xs = alloc::vec![0u32, ONE - 1];
