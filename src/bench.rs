@@ -295,10 +295,13 @@ pub fn fastest_ns<T>(n: usize, mut body: impl FnMut() -> T) -> f64 {
     best
 }
 
-/// The parts every floor shares: the sampler's bare `sample` loop (which also gives the
-/// directions to evaluate at), one evaluation there, two RNG draws.
+/// The parts every floor shares: the sampler's bare sample loop (which also gives the
+/// directions to evaluate at), one evaluation there, two RNG draws. `sample` draws one
+/// sample with the benches' RNG as a concrete type, as the draws are timed: through the
+/// sampler's own generic method, not `&mut dyn Rng` (a virtual call a draw, which the floor's
+/// draws do not pay, would count against the sampler).
 fn shared_parts(
-    sampler: &dyn DirectionSampler,
+    mut sample: impl FnMut(&mut rand_pcg::Pcg64) -> Option<Vec3>,
     brdf: &dyn Brdf,
     wi: Vec3,
     n: usize,
@@ -310,8 +313,8 @@ fn shared_parts(
         let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
         wos.clear();
         for _ in 0..n {
-            if let Some(s) = sampler.sample(&mut rng) {
-                wos.push(s.wo);
+            if let Some(wo) = sample(&mut rng) {
+                wos.push(wo);
             }
         }
         wos.len() as f64
@@ -337,7 +340,8 @@ pub fn rejection_floor<B: Brdf>(
     n: usize,
     seed: u64,
 ) -> Floor {
-    let (sample_ns, eval_ns, uniforms_ns) = shared_parts(q, brdf, q.wi(), n, seed);
+    let (sample_ns, eval_ns, uniforms_ns) =
+        shared_parts(|rng| q.sample(rng).map(|s| s.wo), brdf, q.wi(), n, seed);
     let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
     let us: Vec<f64> = (0..n)
         .map(|_| crate::quadtree_sampler::uniform_f64(&mut rng))
@@ -363,7 +367,14 @@ pub fn warp_floor<B: Brdf>(
     n: usize,
     seed: u64,
 ) -> Floor {
-    let (sample_ns, eval_ns, uniforms_ns) = shared_parts(w, brdf, wi, n, seed);
+    let draw = |rng: &mut rand_pcg::Pcg64| {
+        let u = crate::glam::DVec2::new(
+            crate::quadtree_sampler::uniform_f64(rng),
+            crate::quadtree_sampler::uniform_f64(rng),
+        );
+        w.sample_warp(u.as_vec2()).map(|s| s.wo)
+    };
+    let (sample_ns, eval_ns, uniforms_ns) = shared_parts(draw, brdf, wi, n, seed);
     let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
     let us: Vec<crate::glam::DVec2> = (0..n)
         .map(|_| {
