@@ -129,6 +129,25 @@ impl SelectStart {
         column: 0,
         row: 0,
     };
+
+    /// One step of the selection: from this (inner) node into its child `k`, whose first
+    /// child is at `link`. The descent and its guide both step with it.
+    #[inline(always)]
+    fn enter(self, link: u32, k: usize) -> Self {
+        Self {
+            node: link + k as u32,
+            depth: self.depth + 1,
+            column: 2 * self.column + child_column(k) as u32,
+            row: 2 * self.row + child_row(k) as u32,
+        }
+    }
+}
+
+/// Which child of inner node `n` holds fixed-point `x`: how many of its three cuts `x` is at
+/// or past (branch-free). The descent and its guide both choose with it.
+#[inline(always)]
+fn child_holding(n: &PackedNode, x: u32) -> usize {
+    usize::from(x >= n.data[0]) + usize::from(x >= n.data[1]) + usize::from(x >= n.data[2])
 }
 
 /// The most bits of the 31-bit uniform the selection's guide reads: 256 parts (4 KiB), and
@@ -144,9 +163,6 @@ fn select_guide(nodes: &[PackedNode]) -> (Vec<SelectStart>, u32) {
         bits += 1;
     }
     let width = ONE >> bits;
-    let child = |n: &PackedNode, x: u32| {
-        usize::from(x >= n.data[0]) + usize::from(x >= n.data[1]) + usize::from(x >= n.data[2])
-    };
     let guide = (0..1u32 << bits)
         .map(|j| {
             let (first, last) = (j * width, j * width + (width - 1));
@@ -156,16 +172,11 @@ fn select_guide(nodes: &[PackedNode]) -> (Vec<SelectStart>, u32) {
                 if n.is_leaf() {
                     break at;
                 }
-                let k = child(n, first);
-                if child(n, last) != k {
+                let k = child_holding(n, first);
+                if child_holding(n, last) != k {
                     break at;
                 }
-                at = SelectStart {
-                    node: n.link + k as u32,
-                    depth: at.depth + 1,
-                    column: 2 * at.column + child_column(k) as u32,
-                    row: 2 * at.row + child_row(k) as u32,
-                };
+                at = at.enter(n.link, k);
             }
         })
         .collect();
@@ -482,25 +493,18 @@ impl PackedTree {
     /// The selection of `x` (< 2³¹) from `start`, a node whose interval holds it.
     #[inline(always)]
     fn select_from(&self, start: SelectStart, x: u32) -> Selected {
-        let (mut i, mut depth) = (start.node as usize, start.depth);
-        let (mut column, mut row) = (start.column, start.row);
+        let mut at = start;
         loop {
-            let n = self.nodes[i];
+            let n = self.nodes[at.node as usize];
             if n.is_leaf() {
-                let depth = depth as u8;
+                let depth = at.depth as u8;
                 return Selected {
-                    index: i,
-                    rect: Rect::dyadic(depth, column, row),
+                    index: at.node as usize,
+                    rect: Rect::dyadic(depth, at.column, at.row),
                     depth,
                 };
             }
-            let k = usize::from(x >= n.data[0])
-                + usize::from(x >= n.data[1])
-                + usize::from(x >= n.data[2]);
-            column = 2 * column + child_column(k) as u32;
-            row = 2 * row + child_row(k) as u32;
-            depth += 1;
-            i = n.link as usize + k;
+            at = at.enter(n.link, child_holding(&n, x));
         }
     }
 

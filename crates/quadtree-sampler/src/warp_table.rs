@@ -80,6 +80,17 @@ fn cut(w: u64, p: u32) -> u64 {
     ((u128::from(w) * u128::from(p)) >> 32) as u64
 }
 
+/// One axis of a warp step: the interval [l, l + w) of a node narrowed to its part past the
+/// cut c (`upper` = 1: [l + c, l + w)) or before it (`upper` = 0: [l, l + c)). Branch-free
+/// (the choice is a coin flip a predictor cannot learn); the warp and its guide table both
+/// step with it, so a guide entry holds the very intervals the descent reaches.
+#[inline(always)]
+fn narrow(l: &mut u64, w: &mut u64, c: u64, upper: u64) {
+    let mask = upper.wrapping_neg();
+    *l += c & mask;
+    *w = ((*w - c) & mask) | (c & !mask);
+}
+
 /// One node of a [`WarpTable`]'s sampling layout (see the module doc).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(16))]
@@ -336,16 +347,12 @@ impl WarpTable {
             }
             let cx = cut(wx, n.data);
             let col = u64::from(ux - lx >= cx);
-            let mask = col.wrapping_neg();
-            lx += cx & mask;
-            wx = ((wx - cx) & mask) | (cx & !mask);
+            narrow(&mut lx, &mut wx, cx, col);
             // Both rows' cuts are formed before the column is known.
             let cuts = [cut(wy, n.rows[0]), cut(wy, n.rows[1])];
             let cy = cuts[col as usize];
             let row = u64::from(uy - ly >= cy);
-            let mask = row.wrapping_neg();
-            ly += cy & mask;
-            wy = ((wy - cy) & mask) | (cy & !mask);
+            narrow(&mut ly, &mut wy, cy, row);
             i = n.link as usize + child_index(col as usize, row as usize);
         }
     }
@@ -405,19 +412,16 @@ const GUIDE_BITS: u32 = 4;
 
 /// The jump table of a tree's sampling layout: J = min([`JUMP_LEVELS`], the tree's depth,
 /// log₄ of its node count) and, for each of the 4^J squares of depth J (row-major, 2^J a
-/// side), the node whose square holds it at depth J, or the leaf above that holds it.
+/// side), the node whose square holds it at depth J, or the leaf above that holds it. The
+/// nodes are `derived`'s, their leaves already tagged with their depth.
 fn jump_table(nodes: &[WarpNode]) -> (Vec<u32>, u32) {
-    // Children follow their parents, so one pass finds every depth.
-    let mut depth = alloc::vec![0u32; nodes.len()];
-    let mut deepest = 0;
-    for i in 0..nodes.len() {
-        let link = nodes[i].link;
-        if !is_leaf_link(link) {
-            let d = depth[i] + 1;
-            depth[link as usize..link as usize + 4].fill(d);
-            deepest = deepest.max(d);
-        }
-    }
+    // Every leaf carries its depth (`derived` put it there): the deepest is the tree's.
+    let deepest = nodes
+        .iter()
+        .filter(|n| is_leaf_link(n.link))
+        .map(|n| n.link - LEAF_TAG)
+        .max()
+        .unwrap_or(0);
     // No more entries than nodes: 4^J ≤ n (the table stays within a quarter of the nodes'
     // bytes; a small tree gains little from skipping levels anyway).
     let mut levels = deepest.min(JUMP_LEVELS);
@@ -486,16 +490,8 @@ fn guide_table(nodes: &[WarpNode], bits: u32) -> (Vec<GuideEntry>, u32) {
                     (false, false) => 0,
                     (false, true) => break,
                 };
-                (e.lx, e.wx) = if col == 1 {
-                    (e.lx + cx, e.wx - cx)
-                } else {
-                    (e.lx, cx)
-                };
-                (e.ly, e.wy) = if row == 1 {
-                    (e.ly + cy, e.wy - cy)
-                } else {
-                    (e.ly, cy)
-                };
+                narrow(&mut e.lx, &mut e.wx, cx, col);
+                narrow(&mut e.ly, &mut e.wy, cy, row);
                 e.node = n.link + child_index(col as usize, row as usize) as u32;
             }
             guide.push(e);
