@@ -35,8 +35,9 @@ pub const BAKE_MAGIC: [u8; 8] = *b"BRDFBAKE";
 
 /// The format version this library writes and reads. Version 2: leaves may use the
 /// transposed angle chart, and the models evaluate with the grazing floor
-/// (`brdf_core::geometry::GRAZING_COS`); version 1 files must be baked again.
-pub const BAKE_FORMAT_VERSION: u32 = 2;
+/// (`brdf_core::geometry::GRAZING_COS`). Version 3: the root and its children may use the
+/// polar chart (orthographic trees). Files of earlier versions must be baked again.
+pub const BAKE_FORMAT_VERSION: u32 = 3;
 
 const HEADER: usize = 8 + 4 + 8;
 const TRAILER: usize = 4;

@@ -132,6 +132,12 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         v1: f64,
         rim_limit: Option<f64>,
     ) -> f64 {
+        if prop.chart == Chart::Polar {
+            // The same points as the square's part of the disk, each with height f·½: half
+            // the square's bound (exact in f32) bounds it.
+            let square = Proposal::in_chart(rect, Chart::Square);
+            return 0.5 * self.proposal_bound(&square, rect, peak, v1, rim_limit);
+        }
         // A bound below the node's mean height is certainly wrong (a peak between the points
         // looked at): take four times the mean instead, so that P = ¼ splits the node.
         let mean = if prop.area() > 0.0 {
@@ -142,7 +148,8 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         // The integration refined itself into every sharp feature of the node: its largest
         // value (in the proposal's chart) is a bound candidate and a search seed.
         let seed = match prop.chart {
-            Chart::Square => (peak.f, peak.p),
+            // (Polar boxes took the square's bound above.)
+            Chart::Square | Chart::Polar => (peak.f, peak.p),
             Chart::Angle | Chart::Sine => (peak.fj, peak.q),
             Chart::AngleY => (peak.fjy, peak.qy),
         };
@@ -195,7 +202,7 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
                     };
                     (lim(ylo), lim(yhi).min(hi.y))
                 }
-                Chart::Square | Chart::Sine => (lo.y, hi.y),
+                Chart::Square | Chart::Sine | Chart::Polar => (lo.y, hi.y),
             };
             for j in 0..=g {
                 // Pull the upper ends in by a hair: the node's upper edges are open.

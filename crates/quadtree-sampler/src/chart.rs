@@ -27,6 +27,10 @@
 //! ([`crate::proposal::Proposal::for_node`]), which bounds f·Jacobian even where f grows without bound at the
 //! rim; where f stays bounded the square is bounded too, and the build keeps whichever box
 //! has the smaller volume (usually the square: the charts' Jacobians vanish at the rim).
+//! On the orthographic map the root and its four children, whose parts of the disk are the
+//! whole disk and its quarters, take the square's place with a polar box ([`Chart::Polar`]):
+//! the same points and f·½, without the square's corners outside the disk (a constant f_r
+//! is one leaf with E\[T\] = the safety factor, not 4/π times it).
 
 use brdf_core::math as m;
 use glam::{DVec2, DVec3};
@@ -167,6 +171,12 @@ pub enum Chart {
     AngleY,
     /// Concentric sine coordinates (α, β), for leaves that touch the square's edge.
     Sine,
+    /// Orthographic polar coordinates (s, φ): x = √s·cos φ, y = √s·sin φ, z = √(1 − s),
+    /// Jacobian ½ everywhere ([`polar_point`]). Its boxes cover a node's part of the disk
+    /// exactly, without the square's corners outside it, only where that part is a sector
+    /// through the centre: the root (the whole disk) and its four children (quarter disks).
+    /// There f·½ is bounded wherever f is, and the box's volume is π/4 of the square's.
+    Polar,
 }
 
 /// A point of a chart mapped to the square and the hemisphere.
@@ -218,6 +228,22 @@ pub(crate) fn angle_y_coordinates(w: DVec3) -> DVec2 {
         0.0
     };
     DVec2::new(b, s)
+}
+
+/// The orthographic map's polar chart: (s, φ) → point √s·(cos φ, sin φ), direction with
+/// z = √(1 − s), Jacobian ½ (dx dy = r dr dφ = ½ ds dφ).
+#[inline]
+#[must_use]
+pub fn polar_point(s: f64, phi: f64) -> ChartPoint {
+    let s = s.clamp(0.0, 1.0);
+    let r = m::sqrt(s);
+    let (sp, cp) = m::sin_cos(phi);
+    let p = DVec2::new(r * cp, r * sp);
+    ChartPoint {
+        p,
+        w: DVec3::new(p.x, p.y, m::sqrt(1.0 - s)),
+        jacobian: 0.5,
+    }
 }
 
 /// The concentric map at a square point given by its sine coordinates (α, β), with z exact.

@@ -175,6 +175,12 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             Some(RimProbe::Bounded(limit)) => {
                 self.spend(search);
                 let square_bound = self.proposal_bound(&square, rect, &peak, v1, Some(limit));
+                // The root and its children (orthographic) take the polar box in the
+                // square's place: the same points, f·½, π/4 of the square's volume.
+                let (square, square_bound) = match Proposal::polar(map, rect) {
+                    Some(polar) => (polar, 0.5 * square_bound),
+                    None => (square, square_bound),
+                };
                 if square.area() * square_bound <= chart.area() * chart_bound {
                     (square, square_bound)
                 } else {

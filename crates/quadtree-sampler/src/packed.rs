@@ -9,9 +9,9 @@
 //!   quadrant k ((−,−), (+,−), (−,+), (+,+)), computed exactly in f64 on the way down;
 //! - a leaf's proposal box is a pure function of its square and its chart
 //!   ([`Proposal::in_chart`]): the square itself, or for a rim leaf (the only ones whose box
-//!   is not their square) a box in angle or sine coordinates, which costs a handful of
-//!   inverse sines to find — those are found once, when the tree is packed or read, and kept
-//!   beside the nodes (40 bytes per rim leaf), so a sample never recomputes them;
+//!   is not their square) a box in angle, sine or polar coordinates, which costs a handful
+//!   of inverse sines to find — those are found once, when the tree is packed or read, and
+//!   kept beside the nodes (40 bytes per rim leaf), so a sample never recomputes them;
 //! - selection is an inverse-CDF lookup: the unit interval, in 2³¹ fixed-point units, is
 //!   cut into one interval per leaf, of width ∝ its v1, in tree order; an inner node stores
 //!   where its children 1, 2 and 3 start. One 31-bit uniform descends with three integer
@@ -42,6 +42,8 @@ const LEAF_FLAG: u32 = 1 << 31;
 /// Marks a leaf with v1 > 0 (in f64, as the build found it: a v1 under f32's smallest
 /// subnormal still counts, since the selection gives such a leaf its unit).
 const LIVE_FLAG: u32 = 1 << 30;
+/// A leaf's low bits: its chart (0 square, 1 angle, 2 sine, 3 transposed angle, 4 polar).
+const CHART_BITS: u32 = 7;
 /// Fixed-point scale of the selection: probabilities are multiples of 1/`ONE`.
 const ONE: u32 = 1 << 31;
 
@@ -91,11 +93,12 @@ impl PackedNode {
     }
 
     fn chart(&self) -> Chart {
-        match self.link & 3 {
+        match self.link & CHART_BITS {
             0 => Chart::Square,
             1 => Chart::Angle,
             2 => Chart::Sine,
-            _ => Chart::AngleY,
+            3 => Chart::AngleY,
+            _ => Chart::Polar,
         }
     }
 }
@@ -323,6 +326,7 @@ impl PackedTree {
                         Chart::Angle => 1,
                         Chart::Sine => 2,
                         Chart::AngleY => 3,
+                        Chart::Polar => 4,
                     };
                     let live = if n.v1 > 0.0 { LIVE_FLAG } else { 0 };
                     PackedNode {
@@ -586,17 +590,21 @@ impl PackedTree {
         for (i, w) in raw.iter().enumerate() {
             let link = w[0];
             if link & LEAF_FLAG != 0 {
-                if link & !(LEAF_FLAG | LIVE_FLAG) > 3 {
+                if link & !(LEAF_FLAG | LIVE_FLAG) > 4 {
                     return Err("a leaf with an unknown chart");
                 }
-                let chart = link & 3;
-                // 0 square, 1 angle, 2 sine, 3 transposed angle.
+                let chart = link & CHART_BITS;
+                // 0 square, 1 angle, 2 sine, 3 transposed angle, 4 polar.
                 let fits = match map {
                     DiskMap::Orthographic => chart != 2,
                     DiskMap::Concentric => chart == 0 || chart == 2,
                 };
                 if !fits {
                     return Err("a leaf whose chart does not belong to the tree's map");
+                }
+                // (Parents come first: the depth is known.)
+                if chart == 4 && depth[i] > 1 {
+                    return Err("a polar leaf below the root's children");
                 }
                 let m = f32::from_bits(w[1]);
                 if !(m.is_finite() && m >= 0.0) {
@@ -670,6 +678,40 @@ mod tests {
     #[test]
     fn a_packed_node_is_16_bytes() {
         assert_eq!(core::mem::size_of::<PackedNode>(), 16);
+    }
+
+    /// A constant f_r on the orthographic map is one leaf sampled in the polar chart; its
+    /// layout reads back, and the same leaf marked polar below the root's children (which no
+    /// build makes: only the root and its children are sectors of the disk), or with a chart
+    /// code past the polar one, is refused.
+    #[test]
+    fn polar_leaves_read_back_only_where_a_build_makes_them() {
+        let lambert = brdf_core::models::Lambert::new(glam::Vec3::splat(0.5)).unwrap();
+        let wi = glam::Vec3::new(0.0, 0.6, 0.8);
+        let packed =
+            PackedTree::new(&Quadtree::new(&lambert, wi, crate::BuildConfig::default()).unwrap());
+        assert_eq!(packed.nodes.len(), 1);
+        assert_eq!(packed.nodes[0].chart(), Chart::Polar);
+        let raw = packed.raw_nodes();
+        let read = |raw: &[[u32; 4]]| {
+            PackedTree::from_raw(raw, DiskMap::Orthographic, packed.volume, false)
+        };
+        assert_eq!(read(&raw).unwrap().nodes, packed.nodes);
+        assert!(PackedTree::from_raw(&raw, DiskMap::Concentric, packed.volume, false).is_err());
+        let mut bad = raw.clone();
+        bad[0][0] = (bad[0][0] & !CHART_BITS) | 5;
+        assert_eq!(read(&bad).err(), Some("a leaf with an unknown chart"));
+        // The root split twice down its first child: polar leaves at depth 1 pass, at 2 not.
+        let leaf = raw[0];
+        let inner = |first: u32| [first, 1 << 29, 1 << 30, 3 << 29];
+        let mut deep = alloc::vec![inner(1), inner(5), leaf, leaf, leaf];
+        deep.extend([leaf; 4]);
+        assert!(read(&deep).is_err_and(|e| e == "a polar leaf below the root's children"));
+        let square = (leaf[0] & !CHART_BITS, leaf[1], leaf[2], leaf[3]);
+        for k in 5..9 {
+            deep[k] = [square.0, square.1, square.2, square.3];
+        }
+        assert!(read(&deep).is_ok());
     }
 
     /// The selection through the guide finds the leaf (and square) the descent from the

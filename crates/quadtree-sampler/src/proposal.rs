@@ -2,11 +2,12 @@
 //! on the disk's rim, the smallest box of an angle or sine chart (see [`crate::chart`]).
 
 use crate::chart::{
-    Chart, ChartPoint, Rect, angle_point, angle_point_y, angle_y_coordinates, sine_point,
+    Chart, ChartPoint, Rect, angle_point, angle_point_y, angle_y_coordinates, polar_point,
+    sine_point,
 };
 use brdf_core::DiskMap;
 use brdf_core::math as m;
-use core::f64::consts::FRAC_PI_2;
+use core::f64::consts::{FRAC_PI_2, PI};
 use glam::{DVec2, DVec3};
 
 /// The (a, t) box of the rectangle [lo, hi] (x = sin a, y = cos a·sin t); `chart` names the
@@ -91,11 +92,46 @@ impl Proposal {
         }
     }
 
+    /// The polar box of an orthographic node whose part of the disk is a sector through the
+    /// centre ([`Chart::Polar`]): s ∈ [0, 1] and φ over the whole turn for the root, over its
+    /// quadrant for a child of the root; `None` for any other node. (Squares are dyadic, so
+    /// these comparisons are exact.)
+    #[must_use]
+    pub fn polar(map: DiskMap, rect: &Rect) -> Option<Self> {
+        let corner = |v: f64| v == -1.0 || v == 0.0;
+        let side = rect.max.x - rect.min.x;
+        let sector = (side == 2.0 && rect.min == DVec2::NEG_ONE)
+            || (side == 1.0 && corner(rect.min.x) && corner(rect.min.y));
+        (map == DiskMap::Orthographic && sector).then(|| Self::polar_box(rect))
+    }
+
+    /// The polar box of the root or one of its children (see [`Proposal::polar`]).
+    fn polar_box(rect: &Rect) -> Self {
+        let (lo, hi) = if rect.max.x - rect.min.x >= 2.0 {
+            (-PI, PI)
+        } else {
+            match (rect.min.x >= 0.0, rect.min.y >= 0.0) {
+                (true, true) => (0.0, FRAC_PI_2),
+                (false, true) => (FRAC_PI_2, PI),
+                (false, false) => (-PI, -FRAC_PI_2),
+                (true, false) => (-FRAC_PI_2, 0.0),
+            }
+        };
+        Self {
+            chart: Chart::Polar,
+            lo: DVec2::new(0.0, lo),
+            hi: DVec2::new(1.0, hi),
+        }
+    }
+
     /// The proposal of `rect` in a given chart (the chart a packed leaf recorded). For the
-    /// angle charts: the box of the node's (a, t) or (b, s) coordinates.
+    /// angle charts: the box of the node's (a, t) or (b, s) coordinates; for the polar chart,
+    /// of the root or a child of the root (the only nodes a tree samples in it, and the only
+    /// ones a packed tree accepts it for).
     #[must_use]
     pub fn in_chart(rect: &Rect, chart: Chart) -> Self {
         match chart {
+            Chart::Polar => Self::polar_box(rect),
             Chart::Square => Self {
                 chart,
                 lo: rect.min,
@@ -144,6 +180,12 @@ impl Proposal {
                 (c.p.x >= rect.min.x && c.p.x < rect.max.x && c.jacobian > 0.0).then_some(c)
             }
             Chart::Sine => Some(sine_point(q.x, q.y)),
+            Chart::Polar => {
+                // The box's φ-range is the node's quadrant (or the whole turn): only rounding
+                // on its edges can carry a point out of the node.
+                let c = polar_point(q.x, q.y);
+                rect.contains_half_open(c.p).then_some(c)
+            }
         }
     }
 
@@ -164,6 +206,7 @@ impl Proposal {
                 DVec2::new(a, t)
             }
             Chart::AngleY => angle_y_coordinates(w),
+            Chart::Polar => DVec2::new(w.x * w.x + w.y * w.y, m::atan2(w.y, w.x)),
             Chart::Sine => {
                 let p =
                     brdf_core::maps::disk_to_square_concentric(w.truncate().as_vec2()).as_dvec2();
@@ -273,6 +316,62 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The polar boxes of the root and of its four children hold exactly their parts of the
+    /// disk: box area × Jacobian ½ is that part's area (π, π/4), every point of the part maps
+    /// into the box and back, and every box point maps into its node (or is refused).
+    #[test]
+    fn polar_boxes_are_their_nodes_parts_of_the_disk() {
+        let root = Rect::square(-1.0, -1.0, 2.0);
+        let mut rects = alloc::vec![root];
+        rects.extend(root.quadrants());
+        let map = DiskMap::Orthographic;
+        for r in rects {
+            let prop = Proposal::polar(map, &r).expect("the root and its children are sectors");
+            let part = if r == root { PI } else { PI / 4.0 };
+            assert!((prop.area() * 0.5 - part).abs() < 1e-15, "{r:?}: {prop:?}");
+            for i in 0..=16 {
+                for j in 0..=16 {
+                    let q = prop.lo
+                        + (prop.hi - prop.lo) * DVec2::new(f64::from(i), f64::from(j)) / 16.0;
+                    let Some(c) = prop.point(map, &r, q) else {
+                        // Only on the box's edges: the centre (s = 0), the rim (s = 1) and
+                        // the node's own upper edges (half-open squares).
+                        assert!(i == 0 || i == 16 || j == 0 || j == 16, "{r:?}: {q} refused");
+                        continue;
+                    };
+                    assert!(r.contains_half_open(c.p) && (c.w.length() - 1.0).abs() < 1e-15);
+                    assert_eq!(c.jacobian, 0.5);
+                    if i > 0 && i < 16 && j > 0 && j < 16 {
+                        let back = prop.coordinates(map, c.w);
+                        assert!((back - q).length() < 1e-12, "{r:?}: {q} -> {back}");
+                    }
+                }
+            }
+            let mut k = 0u64;
+            for _ in 0..512 {
+                k = k
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let u = DVec2::new((k >> 40) as f64, ((k >> 16) & 0xff_ffff) as f64)
+                    / f64::from(1u32 << 24);
+                let p = r.min + (r.max - r.min) * u;
+                if p.length_squared() >= 1.0 {
+                    continue;
+                }
+                let w = DVec3::new(p.x, p.y, m::sqrt(1.0 - p.length_squared()));
+                let q = prop.coordinates(map, w);
+                assert!(
+                    q.cmpge(prop.lo).all() && q.cmple(prop.hi).all(),
+                    "{r:?}: {p} -> {q}"
+                );
+            }
+        }
+        // No other node is a sector, and the concentric map has no polar chart.
+        assert!(Proposal::polar(map, &Rect::square(-0.5, -0.5, 1.0)).is_none());
+        assert!(Proposal::polar(map, &Rect::square(0.0, 0.0, 0.5)).is_none());
+        assert!(Proposal::polar(DiskMap::Concentric, &root).is_none());
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! The arena quadtree (seed §2.1, Fig. 1–2): nodes, the split (`particionar`) and the
 //! target-trials refinement.
 
-use crate::chart::{Rect, child_column, child_row};
+use crate::chart::{Chart, Rect, child_column, child_row};
 use crate::config::BuildConfig;
 use crate::error::BuildError;
 use crate::evaluate::{Context, SPLIT_CHUNK};
@@ -73,6 +73,20 @@ impl Node {
     pub fn acceptance(&self) -> f64 {
         let b = self.box_volume();
         if b > 0.0 { self.v1 / b } else { 0.0 }
+    }
+
+    /// The box volume the seed's splitting rule judges the node by: [`Node::box_volume`],
+    /// except that a polar box counts as the square it stands in for (the same points, twice
+    /// its bound: [`Chart::Polar`]). The polar box changes how the root and its children
+    /// are sampled, not which nodes the rule splits, so a tree keeps the shape — and the warp
+    /// its proxy — it has with the square; target mode, which asks for an E\[T\], counts
+    /// the box sampling uses.
+    fn seed_box_volume(&self) -> f64 {
+        if self.proposal.chart == Chart::Polar {
+            self.rect().area() * 2.0 * self.bound
+        } else {
+            self.box_volume()
+        }
     }
 }
 
@@ -200,10 +214,14 @@ impl Quadtree {
                 // point saw 0 (a lobe narrower than the rule's spacing, at grazing incidence
                 // the whole of f_r): the node is not empty, its integration is too coarse.
                 // Split it, and let its children's finer rules find the mass.
+                // (P and the reducible waste as `acceptance` and `reducible_waste` give them,
+                // of the box the rule judges by.)
+                let seed_box = n.seed_box_volume();
+                let p = if seed_box > 0.0 { n.v1 / seed_box } else { 0.0 };
                 let wants = n.depth < cfg.max_depth
                     && (n.v1 > 0.0 || n.bound > 0.0)
-                    && n.acceptance() < cfg.split_threshold
-                    && n.reducible_waste(cfg.bound_safety) > cfg.min_relative_waste * total;
+                    && p < cfg.split_threshold
+                    && seed_box / cfg.bound_safety - n.v1 > cfg.min_relative_waste * total;
                 if wants {
                     if tree.nodes.len() + 4 * (split.len() + 1) > budget {
                         tree.budget_exhausted = true;
