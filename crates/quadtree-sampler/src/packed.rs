@@ -707,10 +707,8 @@ mod tests {
         let mut deep = alloc::vec![inner(1), inner(5), leaf, leaf, leaf];
         deep.extend([leaf; 4]);
         assert!(read(&deep).is_err_and(|e| e == "a polar leaf below the root's children"));
-        let square = (leaf[0] & !CHART_BITS, leaf[1], leaf[2], leaf[3]);
-        for k in 5..9 {
-            deep[k] = [square.0, square.1, square.2, square.3];
-        }
+        let square = [leaf[0] & !CHART_BITS, leaf[1], leaf[2], leaf[3]];
+        deep[5..9].fill(square);
         assert!(read(&deep).is_ok());
     }
 
