@@ -278,8 +278,8 @@ fn slices_from(
         }
         let tree = PackedTree::from_raw(&r.packed, map, r.volume, r.budget_exhausted)
             .map_err(|fault| BakeFileError::Tree { index, fault })?;
-        let warp =
-            WarpTable::from_raw(r.warp).map_err(|fault| BakeFileError::Tree { index, fault })?;
+        let warp = WarpTable::from_raw(r.warp, map)
+            .map_err(|fault| BakeFileError::Tree { index, fault })?;
         if warp.len() != tree.nodes().len()
             || tree
                 .nodes()

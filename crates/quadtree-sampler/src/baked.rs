@@ -94,13 +94,17 @@ pub enum BakedMode {
     Rejection,
     /// The piecewise-constant proxy, a deterministic function of (uc, u). Each leaf's share
     /// is spread over its whole square, so over the orthographic map (the default) the part
-    /// of a rim leaf outside the disk is lost: up to 1 − π/4 ≈ 21 % of the samples for a
-    /// diffuse lobe (measured: lambert 21.6 %), next to nothing for a sharp one. A bake over
-    /// the concentric map (`BuildConfig::map`, `brdf bake --map concentric`) loses nothing
-    /// (lambert 0.01 %), and its rejection mode wastes less too (lambert E\[T\] 1.02 against
-    /// 1.30, phong n = 1000 about 1.03 against 1.2, at half the bytes); its warp proxy is
-    /// coarser where a lobe is sharp (phong n = 1000's warp variance 1.5× the orthographic
-    /// bake's in `brdf bench`, Cook–Torrance m = 0.1's 0.7×).
+    /// of a rim leaf outside the disk is lost — except the root's and its children's, which
+    /// are spread over their parts of the disk (a diffuse lobe's one leaf is the disk:
+    /// lambert, oren-nayar and strauss lose 0.01 %, where spreading over the square lost
+    /// 21.6 %). Measured at θi ≈ 22° and 65° on the default sets, broad lobes with deeper rim
+    /// leaves lose 2–5.5 % (schlick, blinn-phong, lewis-phong, poulin-fournier), ward and
+    /// cook-torrance up to 1 %, sharp lobes next to nothing. A bake over the concentric map
+    /// (`BuildConfig::map`, `brdf bake --map concentric`) loses nothing (0.01 %), and its
+    /// rejection mode wastes less under a sharp lobe too (phong n = 1000 about 1.03 against
+    /// 1.2, at half the bytes); its warp proxy is coarser where a lobe is sharp (phong
+    /// n = 1000's warp variance 1.5× the orthographic bake's in `brdf bench`, Cook–Torrance
+    /// m = 0.1's 0.7×).
     Warp,
 }
 

@@ -1,6 +1,9 @@
 //! The baked sampler's warp proxy of one grid tree: the tree's leaves, each holding its share
 //! of the volume spread uniformly over its square, sampled by hierarchical warping (a
 //! deterministic, stratification-preserving map of [0,1)²) and looked up by point location.
+//! (Over the orthographic map the root and its children, if leaves, spread their shares over
+//! their parts of the disk instead, uniformly in (r², φ): what a square spread would put in
+//! its corners outside the disk is not lost.)
 //!
 //! ## Layout
 //! Each node's share q of the tree's volume (f32) is what bake files store; the sampling
@@ -11,7 +14,8 @@
 //! - `data` — of a branch: the probability of its left column (children 0 and 2; the child
 //!   order is (−,−), (+,−), (−,+), (+,+)) in 32-bit fixed point; of a leaf: **its density**
 //!   (f32 bits), the product of the probabilities of the choices that reach it over its
-//!   square's area (per unit square area);
+//!   square's area, or a disk sector's (per unit square area; a sector's density holds in
+//!   the disk, the only points a direction maps to);
 //! - `rows` — of a branch: the probability of the lower row within the left and within the
 //!   right column (fixed point); of a leaf: its column and row at its depth (so its square
 //!   is known where the warp ends, and the warp carries no position on its way down).
@@ -25,7 +29,7 @@
 //! a 2^g × 2^g grid over u, the deepest node that every u in it passes through, with the
 //! intervals the choices down to it leave — the very state the descent from the root reaches
 //! there, so the warp is bit-identical with or without it, a few dependent levels shorter. At
-//! the leaf, `u` maps affinely into its square. The probability of
+//! the leaf, `u` maps affinely into its square (into (r², φ) of a disk sector). The probability of
 //! reaching a leaf is the product of the split probabilities up to the cuts' rounding,
 //! 2⁻⁶³ of the whole interval per cut (relative 10⁻¹⁰ for a node reached with probability
 //! 10⁻⁹), and that product over the leaf's area is the stored density. The look-up
@@ -135,6 +139,11 @@ pub(crate) struct WarpTable {
     guide: Vec<GuideEntry>,
     guide_bits: u32,
     jump_levels: u32,
+    /// Whether the tree is over the orthographic map, whose disk leaves the square's corners
+    /// out: its root and the root's children, if leaves, spread their shares over their parts
+    /// of the disk (the disk, its quarters) rather than over their squares, in polar
+    /// coordinates — nothing of them is lost outside the disk.
+    disk: bool,
     /// The look-up's first `jump_levels` levels done at once: for each square of that depth
     /// (row-major, 2^jump_levels a side) the node its descent reaches there (or the leaf
     /// that holds it, higher up). Derived, like `nodes`.
@@ -146,6 +155,7 @@ pub(crate) struct WarpTable {
 impl WarpTable {
     /// The proxy of a built tree: each node's share of its volume.
     pub(crate) fn new(tree: &crate::tree::Quadtree) -> Self {
+        let disk = tree.map() == brdf_core::DiskMap::Orthographic;
         let v = tree.volume();
         let shares = tree
             .nodes()
@@ -159,13 +169,16 @@ impl WarpTable {
                 (link, if v > 0.0 { (n.v1 / v) as f32 } else { 0.0 })
             })
             .collect();
-        Self::derived(shares)
+        Self::derived(shares, disk)
     }
 
     /// Rebuilds a table from its stored (first child, share) pairs, checking its shape
     /// (children after parents, in range, one parent each) and that every share is finite
-    /// and ≥ 0.
-    pub(crate) fn from_raw(shares: Vec<(u32, f32)>) -> Result<Self, &'static str> {
+    /// and ≥ 0; `map` is the tree's.
+    pub(crate) fn from_raw(
+        shares: Vec<(u32, f32)>,
+        map: brdf_core::DiskMap,
+    ) -> Result<Self, &'static str> {
         let n = shares.len();
         if n == 0 {
             return Err("a warp table with no nodes");
@@ -197,7 +210,10 @@ impl WarpTable {
         if seen[0] || seen[1..].iter().any(|&s| !s) {
             return Err("warp nodes that are not one tree");
         }
-        Ok(Self::derived(shares))
+        Ok(Self::derived(
+            shares,
+            map == brdf_core::DiskMap::Orthographic,
+        ))
     }
 
     /// The stored form: (first child or [`WARP_LEAF`], share) per node.
@@ -231,7 +247,7 @@ impl WarpTable {
     }
 
     /// The derived fields from the shares of a checked shape (parents before children).
-    fn derived(shares: Vec<(u32, f32)>) -> Self {
+    fn derived(shares: Vec<(u32, f32)>, disk: bool) -> Self {
         let mut nodes: Vec<WarpNode> = shares
             .iter()
             .map(|&(link, _)| WarpNode {
@@ -252,9 +268,16 @@ impl WarpTable {
             let link = nodes[i].link;
             if link == WARP_LEAF {
                 let (depth, column, row) = cell[i];
+                // A disk sector spreads its share over its part of the disk, π/4 of its
+                // square.
+                let area = if disk && depth <= 1 {
+                    area[i] * core::f64::consts::FRAC_PI_4
+                } else {
+                    area[i]
+                };
                 nodes[i] = WarpNode {
                     link: LEAF_TAG + depth,
-                    data: ((prob[i] / area[i]) as f32).to_bits(),
+                    data: ((prob[i] / area) as f32).to_bits(),
                     rows: [column, row],
                 };
                 continue;
@@ -296,6 +319,7 @@ impl WarpTable {
             guide,
             guide_bits,
             jump_levels,
+            disk,
             jump,
             shares,
         }
@@ -335,7 +359,8 @@ impl WarpTable {
                 if !(density > 0.0 && wx > 0 && wy > 0) {
                     return None;
                 }
-                let rect = Rect::dyadic((n.link - LEAF_TAG) as u8, n.rows[0], n.rows[1]);
+                let depth = n.link - LEAF_TAG;
+                let rect = Rect::dyadic(depth as u8, n.rows[0], n.rows[1]);
                 let t = DVec2::new((ux - lx) as f64 / wx as f64, (uy - ly) as f64 / wy as f64)
                     .clamp(DVec2::ZERO, DVec2::splat(1.0 - f64::EPSILON));
                 let leaf = WarpLeaf {
@@ -343,7 +368,12 @@ impl WarpTable {
                     rect,
                     density,
                 };
-                return Some((rect.min + t * rect.side(), leaf));
+                let p = if self.disk && depth <= 1 {
+                    sector_point(&rect, t)
+                } else {
+                    rect.min + t * rect.side()
+                };
+                return Some((p, leaf));
             }
             let cx = cut(wx, n.data);
             let col = u64::from(ux - lx >= cx);
@@ -447,6 +477,17 @@ fn jump_table(nodes: &[WarpNode]) -> (Vec<u32>, u32) {
     (jump, levels)
 }
 
+/// The point of a disk sector (the orthographic root or one of its children, see
+/// [`WarpTable`]'s `disk`) at t ∈ [0,1)²: uniform in (s, φ), s = r² over [0, 1) and φ over the
+/// sector's angles ([`crate::proposal::Proposal::polar`]'s box), so uniform in area over the
+/// node's part of the disk.
+#[inline]
+fn sector_point(rect: &Rect, t: DVec2) -> DVec2 {
+    let b = crate::proposal::Proposal::in_chart(rect, crate::chart::Chart::Polar);
+    let c = crate::chart::polar_point(t.x, b.lo.y + t.y * (b.hi.y - b.lo.y));
+    c.p
+}
+
 /// u ∈ [0,1)² in 63-bit fixed point, as the warp reads it (u clamped below 1 first, so
 /// each coordinate is below 2⁶³).
 #[inline(always)]
@@ -515,6 +556,85 @@ fn fixed_ratio(a: f64, b: f64) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use brdf_core::DiskMap;
+
+    /// The map whose leaves all spread over their squares (the tests of the layout itself).
+    const SQUARES: DiskMap = DiskMap::Concentric;
+
+    /// Over the orthographic map the root and its children, if leaves, spread their shares
+    /// over their parts of the disk, uniformly in area: every warped point is in the disk and
+    /// in its leaf's square, the density is the share over the part's area (π, π/4), and the
+    /// points' r² is uniform on [0, 1) (its mean ½, and a quarter of them below ¼) — a
+    /// square's spread would put 21 % of them outside the disk.
+    #[test]
+    fn disk_sectors_spread_their_shares_over_the_disk() {
+        let one =
+            WarpTable::from_raw(alloc::vec![(WARP_LEAF, 1.0)], DiskMap::Orthographic).unwrap();
+        let split = WarpTable::from_raw(
+            alloc::vec![
+                (1, 1.0),
+                (WARP_LEAF, 0.1),
+                (WARP_LEAF, 0.2),
+                (WARP_LEAF, 0.3),
+                (WARP_LEAF, 0.4)
+            ],
+            DiskMap::Orthographic,
+        )
+        .unwrap();
+        let n = 200;
+        for (t, parts) in [
+            (&one, &[(0usize, 1.0, 4.0)][..]),
+            (
+                &split,
+                &[(1, 0.1, 1.0), (2, 0.2, 1.0), (3, 0.3, 1.0), (4, 0.4, 1.0)][..],
+            ),
+        ] {
+            let (mut r2_sum, mut below, mut count) = (0.0, 0, 0);
+            let mut hits = [0usize; 5];
+            for i in 0..n {
+                for j in 0..n {
+                    let u = DVec2::new(
+                        (f64::from(i) + 0.5) / f64::from(n),
+                        (f64::from(j) + 0.5) / f64::from(n),
+                    );
+                    let (p, leaf) = t.warp(u).unwrap();
+                    assert!(
+                        p.length_squared() < 1.0 && leaf.contains(p),
+                        "{u} -> {p} {leaf:?}"
+                    );
+                    let &(_, share, area) = parts.iter().find(|q| q.0 == leaf.index).unwrap();
+                    let want = f64::from(share as f32) / (area * core::f64::consts::FRAC_PI_4);
+                    assert!(
+                        (leaf.density - want).abs() <= 1e-7 * want,
+                        "{leaf:?} vs {want}"
+                    );
+                    assert_eq!(t.density(p), leaf.density);
+                    hits[leaf.index] += 1;
+                    let r2 = p.length_squared();
+                    r2_sum += r2;
+                    below += usize::from(r2 < 0.25);
+                    count += 1;
+                }
+            }
+            let m = count as f64;
+            assert!((r2_sum / m - 0.5).abs() < 2e-3, "mean r² {}", r2_sum / m);
+            assert!(
+                (below as f64 / m - 0.25).abs() < 2e-3,
+                "r² < ¼: {}",
+                below as f64 / m
+            );
+            for &(k, share, _) in parts {
+                assert!(
+                    (hits[k] as f64 / m - share).abs() < 2e-3,
+                    "leaf {k}: {}",
+                    hits[k]
+                );
+            }
+        }
+        // Every leaf of a concentric tree spreads over its square (its corner is outside the disk).
+        let square = WarpTable::from_raw(alloc::vec![(WARP_LEAF, 1.0)], SQUARES).unwrap();
+        assert!(square.warp(DVec2::splat(0.999)).unwrap().0.length_squared() > 1.0);
+    }
 
     /// A root split once, its child 3 split again, with uneven shares.
     fn table() -> WarpTable {
@@ -531,7 +651,7 @@ mod tests {
             (WARP_LEAF, 0.2),
             (WARP_LEAF, 0.1),
         ]);
-        WarpTable::from_raw(shares).unwrap()
+        WarpTable::from_raw(shares, SQUARES).unwrap()
     }
 
     /// Each leaf's stored density is its share over its area, and integrates to 1.
@@ -651,7 +771,7 @@ mod tests {
                 assert_eq!(t.warp(u), from_root(u), "{u}");
             }
         }
-        let one = WarpTable::from_raw(alloc::vec![(WARP_LEAF, 1.0)]).unwrap();
+        let one = WarpTable::from_raw(alloc::vec![(WARP_LEAF, 1.0)], SQUARES).unwrap();
         assert_eq!((one.guide_bits, one.guide.len()), (0, 1));
         let (p, leaf) = one.warp(DVec2::new(0.25, 0.75)).unwrap();
         assert_eq!((p, leaf.density), (DVec2::new(-0.5, 0.5), 0.25));
@@ -660,11 +780,11 @@ mod tests {
     /// Malformed tables are refused.
     #[test]
     fn malformed_tables_are_refused() {
-        assert!(WarpTable::from_raw(alloc::vec![]).is_err());
-        assert!(WarpTable::from_raw(alloc::vec![(WARP_LEAF, -1.0)]).is_err());
-        assert!(WarpTable::from_raw(alloc::vec![(WARP_LEAF, f32::NAN)]).is_err());
-        assert!(WarpTable::from_raw(alloc::vec![(0, 1.0)]).is_err());
-        assert!(WarpTable::from_raw(alloc::vec![(1, 1.0), (WARP_LEAF, 1.0)]).is_err());
+        assert!(WarpTable::from_raw(alloc::vec![], SQUARES).is_err());
+        assert!(WarpTable::from_raw(alloc::vec![(WARP_LEAF, -1.0)], SQUARES).is_err());
+        assert!(WarpTable::from_raw(alloc::vec![(WARP_LEAF, f32::NAN)], SQUARES).is_err());
+        assert!(WarpTable::from_raw(alloc::vec![(0, 1.0)], SQUARES).is_err());
+        assert!(WarpTable::from_raw(alloc::vec![(1, 1.0), (WARP_LEAF, 1.0)], SQUARES).is_err());
     }
 
     /// On [`deep_table`] (its jump table skips four levels) the look-up with its jump table
@@ -698,7 +818,7 @@ mod tests {
         }
         assert!(checked > 10_000);
         // A one-node table jumps no level.
-        let one = WarpTable::from_raw(alloc::vec![(WARP_LEAF, 1.0)]).unwrap();
+        let one = WarpTable::from_raw(alloc::vec![(WARP_LEAF, 1.0)], SQUARES).unwrap();
         assert_eq!((one.jump_levels, one.jump.len()), (0, 1));
         assert_eq!(one.density(DVec2::new(0.3, -0.9)), 0.25);
     }
@@ -726,6 +846,6 @@ mod tests {
             i += 1;
         }
         assert_eq!(depth.iter().max(), Some(&9));
-        WarpTable::from_raw(shares).unwrap()
+        WarpTable::from_raw(shares, SQUARES).unwrap()
     }
 }
