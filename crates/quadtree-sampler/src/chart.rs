@@ -179,6 +179,16 @@ pub enum Chart {
     Polar,
 }
 
+impl Chart {
+    /// Whether a leaf's box in this chart is kept beside the packed nodes (found once: the
+    /// angle and sine boxes cost inverse sines) rather than formed from its square per
+    /// sample (the square; the polar box, whose bounds are constants).
+    #[must_use]
+    pub fn needs_stored_box(self) -> bool {
+        !matches!(self, Self::Square | Self::Polar)
+    }
+}
+
 /// A point of a chart mapped to the square and the hemisphere.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ChartPoint {

@@ -9,9 +9,10 @@
 //!   quadrant k ((−,−), (+,−), (−,+), (+,+)), computed exactly in f64 on the way down;
 //! - a leaf's proposal box is a pure function of its square and its chart
 //!   ([`Proposal::in_chart`]): the square itself, or for a rim leaf (the only ones whose box
-//!   is not their square) a box in angle, sine or polar coordinates, which costs a handful
-//!   of inverse sines to find — those are found once, when the tree is packed or read, and
-//!   kept beside the nodes (40 bytes per rim leaf), so a sample never recomputes them;
+//!   is not their square) a box in angle or sine coordinates, which costs a handful of
+//!   inverse sines to find — those are found once, when the tree is packed or read, and kept
+//!   beside the nodes (40 bytes per rim leaf), so a sample never recomputes them (the polar
+//!   box of the root or a root's child is constants: not stored);
 //! - selection is an inverse-CDF lookup: the unit interval, in 2³¹ fixed-point units, is
 //!   cut into one interval per leaf, of width ∝ its v1, in tree order; an inner node stores
 //!   where its children 1, 2 and 3 start. One 31-bit uniform descends with three integer
@@ -383,7 +384,7 @@ impl PackedTree {
                 continue;
             }
             let chart = n.chart();
-            self.nodes[i].data[2] = if chart == Chart::Square {
+            self.nodes[i].data[2] = if !chart.needs_stored_box() {
                 0
             } else {
                 self.rim.push(Proposal::in_chart(&rect, chart));
@@ -539,7 +540,7 @@ impl PackedTree {
     pub fn proposal(&self, leaf: &Selected) -> (Proposal, f64) {
         let n = self.nodes[leaf.index];
         let chart = n.chart();
-        let prop = if chart == Chart::Square {
+        let prop = if !chart.needs_stored_box() {
             Proposal::in_chart(&leaf.rect, chart)
         } else {
             self.rim[n.data[2] as usize]

@@ -325,12 +325,12 @@ fn packed_selection_matches_v1_and_reaches_every_live_leaf() {
         let tree =
             Quadtree::new(&*b, dir(theta, 10.0), BuildConfig::with_target_trials(1.3)).unwrap();
         let packed = PackedTree::new(&tree);
-        // 16 bytes a node, 40 a leaf sampled in a rim chart (its box, found once), and 16
-        // a selection-guide entry: the largest power of two up to half the node count (at
-        // least 1, at most 256).
+        // 16 bytes a node, 40 a leaf sampled in an angle or sine chart (its box, found once;
+        // a polar box is constants), and 16 a selection-guide entry: the largest power of two
+        // up to half the node count (at least 1, at most 256).
         let rim_leaves = tree
             .leaves()
-            .filter(|(_, n)| n.proposal.chart != Chart::Square)
+            .filter(|(_, n)| n.proposal.chart.needs_stored_box())
             .count();
         let n = tree.nodes().len();
         let guide = (0..=8)
