@@ -6,7 +6,6 @@
 use brdf_core::quadrature::{GaussLegendre, directional_albedo};
 use brdf_core::{Brdf, DiskMap, geometry::luminance, registry};
 use glam::Vec3;
-use quadtree_sampler::chart::Chart;
 use quadtree_sampler::{BuildConfig, BuildError, PackedTree, Quadtree, QuadtreeSampler, refleja};
 use rand_core::SeedableRng;
 use rand_pcg::Pcg64;
