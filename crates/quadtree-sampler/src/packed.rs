@@ -588,6 +588,8 @@ impl PackedTree {
         let n = raw.len();
         let mut parent_seen = alloc::vec![false; n];
         let mut depth = alloc::vec![0u8; n];
+        // Each node's interval of the fixed-point unit interval (the root's is all of it).
+        let mut span = alloc::vec![(0u32, ONE); n];
         for (i, w) in raw.iter().enumerate() {
             let link = w[0];
             if link & LEAF_FLAG != 0 {
@@ -620,8 +622,15 @@ impl PackedTree {
                 if c <= i || c.checked_add(4).is_none_or(|e| e > n) {
                     return Err("an inner node whose children are out of order or range");
                 }
-                if !(w[1] <= w[2] && w[2] <= w[3] && w[3] <= ONE) {
+                // The children's intervals cut the node's own, in order (parents come
+                // first: the node's interval is known).
+                let (start, end) = span[i];
+                if !(start <= w[1] && w[1] <= w[2] && w[2] <= w[3] && w[3] <= end) {
                     return Err("an inner node whose child intervals are out of order");
+                }
+                let cuts = [start, w[1], w[2], w[3], end];
+                for k in 0..4 {
+                    span[c + k] = (cuts[k], cuts[k + 1]);
                 }
                 if depth[i] >= 30 {
                     return Err("a tree deeper than 30 levels");
@@ -702,15 +711,28 @@ mod tests {
         let mut bad = raw.clone();
         bad[0][0] = (bad[0][0] & !CHART_BITS) | 5;
         assert_eq!(read(&bad).err(), Some("a leaf with an unknown chart"));
-        // The root split twice down its first child: polar leaves at depth 1 pass, at 2 not.
+        // The root split twice down its first child (whose interval is [0, 2²⁹)): polar
+        // leaves at depth 1 pass, at 2 not.
         let leaf = raw[0];
-        let inner = |first: u32| [first, 1 << 29, 1 << 30, 3 << 29];
-        let mut deep = alloc::vec![inner(1), inner(5), leaf, leaf, leaf];
+        let mut deep = alloc::vec![
+            [1, 1 << 29, 1 << 30, 3 << 29],
+            [5, 1 << 27, 1 << 28, 3 << 27],
+            leaf,
+            leaf,
+            leaf
+        ];
         deep.extend([leaf; 4]);
         assert!(read(&deep).is_err_and(|e| e == "a polar leaf below the root's children"));
         let square = [leaf[0] & !CHART_BITS, leaf[1], leaf[2], leaf[3]];
         deep[5..9].fill(square);
         assert!(read(&deep).is_ok());
+        // A child's cuts outside its own interval (which would make its children's
+        // intervals negative) are refused.
+        deep[1] = [5, 1 << 29, 1 << 30, 3 << 29];
+        assert_eq!(
+            read(&deep).err(),
+            Some("an inner node whose child intervals are out of order")
+        );
     }
 
     /// The selection through the guide finds the leaf (and square) the descent from the
