@@ -76,8 +76,13 @@ fn moving_the_theta_slider_moves_wi_and_rebuilds() {
     settle(&mut h);
     let after = h.state().tree_stats().unwrap().clone();
     assert_ne!(before, after, "the tree did not follow wi");
-    // The drawn samples are for the new direction: the χ² still accepts.
-    assert!(h.state().live_test().unwrap().passed());
+    // The drawn samples are for the new direction. Samples left over from θ = 45° (a lobe
+    // 25° away) give a p-value of essentially zero against the new f·cos; samples for 70°
+    // pass a test at 1e-4 but for a one-in-ten-thousand draw. (The panel's verdict is at
+    // ALPHA = 0.01, which one fixed seed in a hundred rejects by design.)
+    let test = h.state().live_test().unwrap();
+    let p = test.chi2.as_ref().map(|c| c.p_value);
+    assert!(p.is_some_and(|p| p >= 1e-4), "{:?}", test.chi2);
 }
 
 #[test]
