@@ -325,7 +325,13 @@ impl Quadtree {
     }
 
     /// SPEC §3's target mode: split, in batches, the live leaves with the largest reducible
-    /// wasted volume (box/safety − v1: the safety factor's share cannot be split away) until E\[T\] ≤ target, the budget is spent, or no leaf can split.
+    /// wasted volume (box/safety − v1: the safety factor's share cannot be split away) until
+    /// E\[T\] ≤ target, the budget is spent, or no leaf can split. A batch holds no more
+    /// leaves than the excess volume needs (their wastes × safety, summed): split before the
+    /// last, they cannot have brought E\[T\] to the target (up to the children's v1 moving
+    /// within the integration tolerance), so a batch evaluates in parallel yet never splits
+    /// past it. (Where no child's waste exceeds a leaf later in its batch, the
+    /// tree is the one-leaf-at-a-time greedy's.)
     fn refine_to_target<B: Brdf + ?Sized>(
         &mut self,
         ctx: &Context<'_, B>,
@@ -360,10 +366,18 @@ impl Quadtree {
             }
         }
         while v1s > 0.0 && boxes / v1s > target {
-            let mut batch = Vec::with_capacity(BATCH);
-            while batch.len() < BATCH {
+            // A split removes at most safety × its leaf's reducible waste (each child's box
+            // is at least safety × its v1): take leaves until that reaches the excess volume
+            // (at most BATCH). Far from the target that is a full batch to evaluate in
+            // parallel; near it, no split past the target.
+            let excess = boxes - target * v1s;
+            let (mut batch, mut removable) = (Vec::with_capacity(BATCH), 0.0);
+            while batch.len() < BATCH && removable < excess {
                 match heap.pop() {
-                    Some(Waste(_, i)) => batch.push(i),
+                    Some(Waste(w, i)) => {
+                        batch.push(i);
+                        removable += w * cfg.bound_safety;
+                    }
                     None => break,
                 }
             }
