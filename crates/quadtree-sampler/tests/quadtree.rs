@@ -827,3 +827,34 @@ fn codificador_round_trips_world_directions() {
         .unwrap();
     assert!(s.wo.dot(n) > 0.0 && (s.wo.length() - 1.0).abs() < 1e-5);
 }
+
+/// Target mode splits no more than the target needs: asked for an E\[T\] just below the seed
+/// tree's, it adds a split or a few, not a whole batch of 16 (64 nodes), as batching by a
+/// fixed count did.
+#[test]
+fn a_target_just_below_the_seed_trees_adds_a_few_splits() {
+    for (name, params) in [
+        ("phong", &["n=1000", "kd=0"][..]),
+        ("ward", &["alpha_x=0.05", "alpha_y=0.05", "kd=0"][..]),
+        ("cook-torrance", &["m=0.1"][..]),
+    ] {
+        let b = model(name, params);
+        let wi = dir(45.0, 30.0);
+        let seed = Quadtree::new(&*b, wi, BuildConfig::default()).unwrap();
+        let before = seed.stats();
+        let target = before.expected_trials - 0.005;
+        let refined = Quadtree::new(&*b, wi, BuildConfig::with_target_trials(target)).unwrap();
+        let after = refined.stats();
+        assert!(after.expected_trials <= target, "{name}: {after:?}");
+        assert!(
+            before.leaves >= 64,
+            "{name}: a tree too small to tell: {before:?}"
+        );
+        let added = after.nodes - before.nodes;
+        assert!(
+            added > 0 && added <= 16,
+            "{name}: {added} nodes added for E[T] {} → {target}",
+            before.expected_trials
+        );
+    }
+}
