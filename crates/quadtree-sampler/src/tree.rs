@@ -330,8 +330,8 @@ impl Quadtree {
     /// leaves than the excess volume needs (their wastes × safety, summed): split before the
     /// last, they cannot have brought E\[T\] to the target (up to the children's v1 moving
     /// within the integration tolerance), so a batch evaluates in parallel yet never splits
-    /// past it. (Where no child's waste exceeds a leaf later in its batch, the
-    /// tree is the one-leaf-at-a-time greedy's.)
+    /// past it. (Where no child's waste exceeds a leaf later in its batch, the tree is the
+    /// one-leaf-at-a-time greedy's.)
     fn refine_to_target<B: Brdf + ?Sized>(
         &mut self,
         ctx: &Context<'_, B>,
