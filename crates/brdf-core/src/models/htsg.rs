@@ -4,7 +4,7 @@ use crate::error::ParamError;
 use crate::geometry::{above_horizon, luminance, upper_pair};
 use crate::math as m;
 use crate::param::{ParamSet, ParamSpec, ParamValue};
-use crate::special::{erfc, lambert_w0, ln_gamma};
+use crate::special::{erfcx_short, lambert_w0, ln_gamma};
 use core::f64::consts::{FRAC_1_PI, PI};
 use glam::{DVec3, Vec3};
 
@@ -43,6 +43,34 @@ pub struct Htsg {
     eta: Vec3,
     kappa: Vec3,
     a: Vec3,
+    /// What each channel's evaluation needs of its parameters, made once in [`Htsg::new`].
+    channels: [Channel; 3],
+}
+
+/// One channel's constants: functions of (τ, λ, η, κ) that every evaluation would otherwise
+/// recompute.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Channel {
+    /// 2·ln(2π/λ): ln g = 2·ln(σ·vz) + this, so the three channels share one logarithm.
+    ln_k2: f64,
+    /// π²τ²/λ²: A = this · |wi.xy + wo.xy|².
+    a_scale: f64,
+    /// η² − κ² − 1 (Fresnel's B − c², see [`conductor_fresnel`]).
+    fresnel_e: f64,
+    /// 4η²κ².
+    fresnel_4e2k2: f64,
+}
+
+impl Channel {
+    fn new(tau: f64, lambda: f64, eta: f64, kappa: f64) -> Self {
+        let tl = tau / lambda;
+        Self {
+            ln_k2: 2.0 * m::ln(2.0 * PI / lambda),
+            a_scale: PI * PI * tl * tl,
+            fresnel_e: (eta - 1.0) * (eta + 1.0) - kappa * kappa,
+            fresnel_4e2k2: 4.0 * eta * eta * kappa * kappa,
+        }
+    }
 }
 
 /// The per-pair quantities shared by the three channels.
@@ -99,13 +127,28 @@ impl Htsg {
         kappa: Vec3,
         a: Vec3,
     ) -> Result<Self, ParamError> {
+        let sigma0 = Self::PARAMS[0].check_scalar(sigma0)?;
+        let tau = Self::PARAMS[1].check_scalar(tau)?;
+        let lambda = Self::PARAMS[2].check_rgb(lambda)?;
+        let eta = Self::PARAMS[3].check_rgb(eta)?;
+        let kappa = Self::PARAMS[4].check_rgb(kappa)?;
+        let a = Self::PARAMS[5].check_rgb(a)?;
+        let channel = |i: usize| {
+            Channel::new(
+                f64::from(tau),
+                f64::from(lambda[i]),
+                f64::from(eta[i]),
+                f64::from(kappa[i]),
+            )
+        };
         Ok(Self {
-            sigma0: Self::PARAMS[0].check_scalar(sigma0)?,
-            tau: Self::PARAMS[1].check_scalar(tau)?,
-            lambda: Self::PARAMS[2].check_rgb(lambda)?,
-            eta: Self::PARAMS[3].check_rgb(eta)?,
-            kappa: Self::PARAMS[4].check_rgb(kappa)?,
-            a: Self::PARAMS[5].check_rgb(a)?,
+            sigma0,
+            tau,
+            lambda,
+            eta,
+            kappa,
+            a,
+            channels: [channel(0), channel(1), channel(2)],
         })
     }
 
@@ -139,22 +182,27 @@ impl Htsg {
     /// 2·10⁻⁹ relative even for f0 ≈ 2000 (the other direction at the 10⁻⁴ grazing floor).
     /// S is 1 for a ≥ 6, where its formula is 1 − 10⁻¹⁷ or closer, which rounds to 1.
     fn k_and_shadowing(&self, w: DVec3) -> (f64, f64) {
-        let sin = m::sqrt(w.x * w.x + w.y * w.y);
         if w.z <= 0.0 {
             return (0.0, 0.0);
         }
+        let (s0, t0) = (self.s0(), self.t0());
+        let sin2 = w.x * w.x + w.y * w.y;
+        // a = τ·cos θ/(2σ0·sin θ) ≥ 6 ⟺ (τ·cos θ)² ≥ (12σ0)²·sin²θ: no root or division on
+        // the common path. tan θ < 10⁻⁶ (sin θ = 0 included) is inside it: a > τ/(2σ0·10⁻⁶)
+        // ≥ 2500 there.
+        let tz = t0 * w.z;
+        if tz * tz >= 144.0 * s0 * s0 * sin2 {
+            return (0.0, 1.0);
+        }
+        let sin = m::sqrt(sin2);
         let tan = sin / w.z;
-        if tan < 1e-6 {
-            // a > τ/(2σ0·10⁻⁶) ≥ 2500 here: S is 1.
-            return (0.0, 1.0);
-        }
-        let a = self.t0() * w.z / (2.0 * self.s0() * sin);
-        if a >= 6.0 {
-            return (0.0, 1.0);
-        }
-        let ec = erfc(a);
+        let a = tz / (2.0 * s0 * sin);
+        // erfc a = e^{−a²}·erfcx a: one exponential serves erfc and Λ, and 1/a = (2σ0/τ)·tan θ.
+        let e = m::exp_nonpositive(-a * a);
+        let ex = erfcx_short(a);
+        let ec = e * ex;
         let k = if a > 5.5 { 0.0 } else { tan * ec };
-        let lambda = 0.5 * (m::exp(-a * a) / (a * SQRT_PI) - ec);
+        let lambda = 0.5 * e * (2.0 * s0 / t0 * tan / SQRT_PI - ex);
         (k, ((1.0 - 0.5 * ec) / (lambda + 1.0)).clamp(0.0, 1.0))
     }
 
@@ -193,24 +241,29 @@ impl Htsg {
         (geo, si * so)
     }
 
-    /// The directional-diffuse distribution D for one wavelength (the sum, times its
-    /// prefactor π²τ²/(4λ²)).
-    fn distribution(&self, geo: &Geometry, lambda: f64) -> f64 {
-        let t = 2.0 * PI * geo.sigma * geo.vz / lambda;
-        let g = t * t;
-        let tl = self.t0() / lambda;
-        let a = PI * PI * tl * tl * geo.vxy2;
-        PI * PI * tl * tl * 0.25 * htsg_sum(g, a)
+    /// The directional-diffuse distribution D of the three channels (each the sum, times
+    /// its prefactor π²τ²/(4λ²)): g = (2πσ·vz/λ)² with ln g = 2·ln(σ·vz) + 2·ln(2π/λ), one
+    /// logarithm for the three.
+    fn distribution(&self, geo: &Geometry) -> DVec3 {
+        let sv = geo.sigma * geo.vz;
+        let ln_sv2 = 2.0 * m::ln(sv);
+        let l = self.lambda.as_dvec3().to_array();
+        let mut d = [0.0; 3];
+        for ((di, ch), lambda) in d.iter_mut().zip(&self.channels).zip(l) {
+            let t = 2.0 * PI * sv / lambda;
+            let g = t * t;
+            let a = ch.a_scale * geo.vxy2;
+            *di = 0.25 * ch.a_scale * htsg_sum_ln(g, ln_sv2 + ch.ln_k2, a);
+        }
+        DVec3::from_array(d)
     }
 
     /// The per-channel Fresnel reflectance of the conductor at local cosine `c`.
     fn fresnel(&self, c: f64) -> DVec3 {
-        let (e, k) = (self.eta.as_dvec3(), self.kappa.as_dvec3());
-        DVec3::new(
-            conductor_fresnel(c, e.x, k.x),
-            conductor_fresnel(c, e.y, k.y),
-            conductor_fresnel(c, e.z, k.z),
-        )
+        let [r, g, b] = self
+            .channels
+            .map(|ch| fresnel_of(c, ch.fresnel_e, ch.fresnel_4e2k2));
+        DVec3::new(r, g, b)
     }
 
     fn specular(&self, wi: DVec3) -> DVec3 {
@@ -230,27 +283,41 @@ impl Htsg {
 /// (MODELS.md §7, step 6); 1 for c < 1e-7.
 #[must_use]
 pub fn conductor_fresnel(c: f64, eta: f64, kappa: f64) -> f64 {
+    let e = (eta - 1.0) * (eta + 1.0) - kappa * kappa;
+    fresnel_of(c, e, 4.0 * eta * eta * kappa * kappa)
+}
+
+/// [`conductor_fresnel`] from e = η² − κ² − 1 and 4η²κ², with one division.
+///
+/// B = η² − κ² − s² is written e + c², so that for η = 1, κ = 0 (no interface) B, Q and a
+/// are exactly c², c², c and F is exactly 0, not rounding noise. The (a − c)² of Fs's
+/// numerator is h²/d² with h = (a² − c²) = ½(Q + e − c²) and d = a + c, and
+/// F = ½Fs(1 + Fp/Fs) = Fs·(a² + b² + s²t²)/D₂, so F = (h² + b²d²)(a² + b² + s²t²)/(d²D₁D₂)
+/// with D₁, D₂ the two denominators of MODELS.md's Fs and Fp/Fs. Every factor stays below
+/// 10²⁰ for parameters in range (s²t² ≤ 10¹⁴ at c = 10⁻⁷).
+#[inline]
+fn fresnel_of(c: f64, e: f64, four_e2k2: f64) -> f64 {
     if c < 1e-7 {
         return 1.0;
     }
     let c = c.min(1.0);
     let c2 = c * c;
     let s2 = 1.0 - c2;
-    let (s, t) = (m::sqrt(s2), m::sqrt(s2) / c);
-    // B = η² − κ² − s² as e + c² with e = η² − κ² − 1, so that for η = 1, κ = 0 (no
-    // interface) B, Q and a are exactly c², c², c and F is exactly 0, not rounding noise.
-    let e = (eta - 1.0) * (eta + 1.0) - kappa * kappa;
+    // s·t = s²/c and s²t² = (s·t)².
+    let st = s2 / c;
+    let s2t2 = st * st;
     let b = e + c2;
-    let q = m::sqrt(b * b + 4.0 * eta * eta * kappa * kappa);
+    let q = m::sqrt(b * b + four_e2k2);
     let a2 = 0.5 * (q + b);
     let b2 = 0.5 * (q - b);
     let a = m::sqrt(a2.max(0.0));
-    // a² + b² − 2ac + c² = (a − c)² + b², with a − c = (a² − c²)/(a + c).
-    let amc = 0.5 * (q + e - c2) / (a + c);
-    let fs = (amc * amc + b2) / (a2 + b2 + 2.0 * a * c + c2);
-    let fp =
-        fs * (a2 + b2 - 2.0 * a * s * t + s2 * t * t) / (a2 + b2 + 2.0 * a * s * t + s2 * t * t);
-    0.5 * (fs + fp)
+    let h = 0.5 * (q + e - c2);
+    let d = a + c;
+    let d2 = d * d;
+    let ab = a2 + b2;
+    let d1 = ab + 2.0 * a * c + c2;
+    let dp = ab + 2.0 * a * st + s2t2;
+    (h * h + b2 * d2) * (ab + s2t2) / (d2 * d1 * dp)
 }
 
 /// How many terms the series tables hold. g ≤ [`HTSG_SERIES_LIMIT`] puts the terms' peak
@@ -335,6 +402,11 @@ const LN_REL_STOP: f64 = -29.933_606_208_922_594;
 /// or A = ∞.
 #[must_use]
 pub fn htsg_sum(g: f64, a: f64) -> f64 {
+    htsg_sum_ln(g, m::ln(g), a)
+}
+
+/// [`htsg_sum`] given ln g as well (`lg`; the caller's may differ from `ln(g)` by rounding).
+fn htsg_sum_ln(g: f64, lg: f64, a: f64) -> f64 {
     if g.is_nan() || g <= 0.0 || a.is_nan() || a == f64::INFINITY {
         return 0.0;
     }
@@ -344,7 +416,6 @@ pub fn htsg_sum(g: f64, a: f64) -> f64 {
         return e / g + 0.5 * g * e * (2.0 / g3 - 4.0 * a / (g3 * g) + a * a / (g3 * g2));
     }
     let t = &SERIES;
-    let lg = m::ln(g);
     // ln of the ratio t_{k+1}/t_k (falling in k), and the log-term without its −g.
     let dy = |k: usize| lg + t.ln[k] - 2.0 * t.ln[k + 1] + a * t.inv[k] * t.inv[k + 1];
     let y = |k: usize, kf: f64| kf * lg - t.ln_fact_m[k] - a * t.inv[k];
@@ -388,9 +459,10 @@ pub fn htsg_sum(g: f64, a: f64) -> f64 {
         }
         k -= BLOCK;
     }
-    // yp − g ≤ 0 (every term is at most 1), so this cannot overflow; an underflow is a
-    // sum below 10⁻³⁰⁸, which no f32 result can tell from 0.
-    m::exp(yp - g) * acc.iter().sum::<f64>()
+    // yp − g ≤ 0 (every term is at most 1; rounding may put it an ulp above, which
+    // `exp_nonpositive` takes as it should). Below −708 it gives e^−708: a sum below 10⁻³⁰⁷,
+    // which no f32 result can tell from 0.
+    m::exp_nonpositive(yp - g) * acc.iter().sum::<f64>()
 }
 
 /// The first k ≥ 1 (at most [`TABLE_LEN`]) with `dy(k) < 0`, for a `dy` that falls with k:
@@ -545,12 +617,7 @@ impl Brdf for Htsg {
         let gf = (2.0 + 2.0 * c) / geo.vz;
         let g = gf * gf;
         let common = g * s * FRAC_1_PI / (wi.z * wo.z);
-        let l = self.lambda.as_dvec3();
-        let d = DVec3::new(
-            self.distribution(&geo, l.x),
-            self.distribution(&geo, l.y),
-            self.distribution(&geo, l.z),
-        );
+        let d = self.distribution(&geo);
         let f = self.fresnel(m::sqrt((0.5 * (1.0 + c)).max(0.0)));
         (f * d * common + self.a.as_dvec3() * FRAC_1_PI).as_vec3()
     }
