@@ -169,8 +169,20 @@ impl Quadtree {
         wi: Vec3,
         config: BuildConfig,
     ) -> Result<Self, BuildError> {
-        let (ctx, cells) = Context::new(brdf, wi, config);
-        Self::build(&ctx, cells)
+        let run = || {
+            let (ctx, cells) = Context::new(brdf, wi, config);
+            Self::build(&ctx, cells)
+        };
+        // On a worker of the pool: every level's `par_iter` and every join below is then
+        // forked from a worker (its own deque, which the other workers steal from), not
+        // injected from outside and waited for on a latch — a caller's thread that is not
+        // a worker would sleep and be woken at every level, a context switch each time.
+        // Serial builds stay on the caller's thread.
+        #[cfg(feature = "rayon")]
+        if config.parallel {
+            return rayon::scope(|_| run());
+        }
+        run()
     }
 
     /// Builds the tree of f_r(wi, ·) (`wi` local, above the horizon), splitting every node
