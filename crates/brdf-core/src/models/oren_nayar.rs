@@ -95,8 +95,11 @@ impl Brdf for OrenNayar {
         };
         let q = 4.0 * alpha * beta / (PI * PI);
         let c3 = self.c3 * q * q;
-        let direct =
-            self.c1 + cdp * c2 * tan_beta + (1.0 - cdp.abs()) * c3 * m::tan(0.5 * (alpha + beta));
+        // tan((α + β)/2) = (sin α + sin β)/(cos α + cos β), exactly: no tangent to call, and
+        // the denominator is at least twice the grazing floor's cosine.
+        let sin_beta = tan_beta * cb;
+        let tan_half_sum = (sin_alpha + sin_beta) / (ca + cb);
+        let direct = self.c1 + cdp * c2 * tan_beta + (1.0 - cdp.abs()) * c3 * tan_half_sum;
         let inter = self.c4 * (1.0 - cdp * b2p * b2p);
         self.albedo
             .as_dvec3()
