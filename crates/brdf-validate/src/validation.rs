@@ -165,6 +165,26 @@ impl Validation {
         &self.mass
     }
 
+    /// The probability of every cell under a sampler's reported density `pdf` (**per unit
+    /// solid angle**, at the incident direction of this set-up): ∫ pdf dω = ∫ pdf/cos θ dA
+    /// over the cell, by the same integrator and break points as the masses, to the same
+    /// tolerance relative to a total of 1. What is missing from their sum (at most 1) is the
+    /// probability the sampler gives no direction. The second χ² of [`Validation::test`] is
+    /// taken against these; a caller that histograms samples itself (the viewer) can take it
+    /// too.
+    #[must_use]
+    pub fn own_probability(&self, pdf: &(dyn Fn(Vec3) -> f64 + Sync)) -> Vec<f64> {
+        let total: f64 = self.mass.iter().sum();
+        self.grid
+            .integrate_all(self.tol / total.max(1e-300), &self.hints, &|w: Vec3| {
+                if w.z > 0.0 {
+                    pdf(w) / f64::from(w.z)
+                } else {
+                    0.0
+                }
+            })
+    }
+
     /// Draws `samples` directions from `sampler` (which must be for this BRDF and `wi`),
     /// histograms them, and judges them at per-test significance `alpha` (see [`crate::sidak`]).
     /// Serial: one random stream for all samples.
@@ -274,13 +294,8 @@ impl Validation {
             .sum();
         // χ² against f·cos: lost and outside samples have an expectation of 0 there.
         let chi2 = chi_square(&observed, &expected);
-        // χ² against the sampler's own pdf: ∫ pdf dω = ∫ pdf / cos θ dA.
-        let own = self
-            .grid
-            .integrate_all(self.tol / total.max(1e-300), &self.hints, &|w: Vec3| {
-                let p = f64::from(sampler.pdf(w));
-                if w.z > 0.0 { p / f64::from(w.z) } else { 0.0 }
-            });
+        // χ² against the sampler's own pdf.
+        let own = self.own_probability(&|w: Vec3| f64::from(sampler.pdf(w)));
         let own_total: f64 = own.iter().sum();
         let mut expected_own: Vec<f64> = own.iter().map(|x| m * x).collect();
         let mut observed_own = observed.clone();

@@ -33,6 +33,9 @@ struct Results {
     tree: Option<(Arc<TreeView>, TreeStats, f64, f64)>,
     /// Expected mass per cell, with the grid it was integrated on.
     expected: Option<(CellGrid, Arc<Vec<f64>>)>,
+    /// Each cell's probability under the sampler's own pdf (not for the tree's rejection
+    /// sampler), with its grid.
+    expected_own: Option<(CellGrid, Arc<Vec<f64>>)>,
     samples: Option<Arc<SampleState>>,
     samples_grid: Option<CellGrid>,
     error: Option<String>,
@@ -268,6 +271,15 @@ impl ViewerApp {
                 c.p_value,
                 if t.passed() { "pass" } else { "reject" }
             );
+            if let Some(c) = &t.chi2_own {
+                out += &format!(
+                    "chi2 own pdf: {:.2}, dof {}, p {:.4}, {} at alpha {ALPHA}\n",
+                    c.statistic,
+                    c.dof,
+                    c.p_value,
+                    if t.passed_own() { "pass" } else { "reject" }
+                );
+            }
         }
         if let Some(e) = &self.results.error {
             out += &format!("error: {e}\n");
@@ -296,9 +308,25 @@ impl ViewerApp {
             return None;
         }
         let histogram = Histogram::of_counts(*grid, samples.counts.clone(), mass.to_vec());
+        // Against the sampler's own pdf: every sample drawn, a last bin for those that landed
+        // in no cell (lost, as brdf-validate counts them).
+        let chi2_own = self
+            .results
+            .expected_own
+            .as_ref()
+            .filter(|(g, p)| g == grid && p.len() == mass.len())
+            .and_then(|(_, p)| {
+                let m = samples.drawn as f64;
+                let mut expected: Vec<f64> = p.iter().map(|x| m * x).collect();
+                expected.push(m * (1.0 - p.iter().sum::<f64>()).max(0.0));
+                let mut observed = samples.counts.clone();
+                observed.push(samples.drawn - landed);
+                chi_square(&observed, &expected)
+            });
         Some(LiveTest {
             samples: landed,
             chi2: chi_square(&histogram.observed, &histogram.expected),
+            chi2_own,
             histogram,
         })
     }
@@ -392,7 +420,11 @@ impl ViewerApp {
                 }
                 Update::Expected(_, mass) => {
                     self.results.expected = Some((self.inputs.grid(), mass));
+                    self.results.expected_own = None;
                     self.results.samples = None;
+                }
+                Update::ExpectedOwn(_, probability) => {
+                    self.results.expected_own = Some((self.inputs.grid(), probability));
                 }
                 Update::Samples(_, state) => {
                     self.results.samples = Some(state);
@@ -403,6 +435,7 @@ impl ViewerApp {
                     self.results.error = Some(message);
                     self.results.tree = None;
                     self.results.expected = None;
+                    self.results.expected_own = None;
                     self.results.samples = None;
                     self.textures_stale = true;
                     self.finished = g;

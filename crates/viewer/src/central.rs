@@ -16,22 +16,33 @@ use std::sync::Arc;
 /// Significance of the live χ² verdict (one test).
 pub const ALPHA: f64 = 0.01;
 
-/// The live χ² of the current samples against f·cos.
+/// The live χ² of the current samples against f·cos, and against the sampler's own pdf.
 #[derive(Clone, Debug)]
 pub struct LiveTest {
     /// Samples that landed in cells.
     pub samples: u64,
     /// Observed and expected counts per cell (expected for the samples that landed).
     pub histogram: Histogram,
-    /// Pearson's χ² (`None` with fewer than two pooled bins).
+    /// Pearson's χ² against f·cos (`None` with fewer than two pooled bins).
     pub chi2: Option<ChiSquare>,
+    /// Pearson's χ² against the sampler's own pdf, over every sample drawn (a last bin holds
+    /// those it gave no direction for). `None` for the tree's rejection sampler (its pdf is
+    /// f·cos over the tree's volume: `chi2` judges it), and until the pdf is integrated.
+    pub chi2_own: Option<ChiSquare>,
 }
 
 impl LiveTest {
-    /// Whether the χ² test accepts at [`ALPHA`].
+    /// Whether the χ² test against f·cos accepts at [`ALPHA`].
     #[must_use]
     pub fn passed(&self) -> bool {
         self.chi2.as_ref().is_some_and(|c| c.p_value >= ALPHA)
+    }
+
+    /// Whether the χ² test against the sampler's own pdf accepts at [`ALPHA`] (false while
+    /// there is none).
+    #[must_use]
+    pub fn passed_own(&self) -> bool {
+        self.chi2_own.as_ref().is_some_and(|c| c.p_value >= ALPHA)
     }
 }
 
@@ -253,6 +264,20 @@ impl HistogramsView {
                     None => ("too few samples for a χ² test".into(), Color32::GRAY),
                 };
                 ui.colored_label(color, text);
+                if let Some(c) = &t.chi2_own {
+                    let (verdict, color) = if t.passed_own() {
+                        ("consistent with its own pdf", Color32::LIGHT_GREEN)
+                    } else {
+                        ("REJECTED", Color32::LIGHT_RED)
+                    };
+                    ui.colored_label(
+                        color,
+                        format!(
+                            "against the sampler's own pdf: χ² = {:.1}, dof = {}, p = {:.3}: {verdict}",
+                            c.statistic, c.dof, c.p_value
+                        ),
+                    );
+                }
             }
             None => {
                 ui.label("waiting for samples…");

@@ -140,6 +140,10 @@ pub enum Update {
     },
     /// The expected cell masses ∫ Y(f_r) dA are integrated.
     Expected(u64, Arc<Vec<f64>>),
+    /// Each cell's probability under the sampler's own reported pdf (∫ pdf dω; their sum is at
+    /// most 1, the rest being the samples it gives no direction for). Sent for every sampler
+    /// but the tree's own rejection sampler, whose pdf is f·cos over the tree's volume.
+    ExpectedOwn(u64, Arc<Vec<f64>>),
     /// More samples were drawn (cumulative).
     Samples(u64, Arc<SampleState>),
     /// The job is complete.
@@ -156,6 +160,7 @@ impl Update {
             Self::Map(g, _)
             | Self::Lobe(g, _)
             | Self::Expected(g, _)
+            | Self::ExpectedOwn(g, _)
             | Self::Samples(g, _)
             | Self::Done(g)
             | Self::Failed(g, _) => *g,
@@ -356,6 +361,15 @@ pub fn process(req: &Request, live: &dyn Fn() -> bool, send: &dyn Fn(Update)) {
         Some(b) => b,
         None => &tree_sampler,
     };
+    // The second χ²'s cells: the sampler's own pdf integrated like the masses (the tree's
+    // rejection sampler is f·cos over its volume: the first χ² judges that shape already).
+    if req.sampler != SamplerKind::Rejection {
+        let own = validation.own_probability(&|w: Vec3| f64::from(sampler.pdf(w)));
+        send(Update::ExpectedOwn(g, Arc::new(own)));
+        if !live() {
+            return;
+        }
+    }
     let map = req.config.map;
     let mut rng = rand_pcg::Pcg64::seed_from_u64(req.seed);
     let mut state = SampleState {

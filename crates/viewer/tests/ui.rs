@@ -263,7 +263,10 @@ fn the_live_verdict_rejects_a_sampler_that_does_not_follow_f_cos() {
         ..small("phong")
     });
     settle(&mut h);
-    assert!(h.state().live_test().unwrap().passed());
+    let tree = h.state().live_test().unwrap();
+    assert!(tree.passed());
+    // The tree's own rejection sampler is judged against f·cos alone.
+    assert!(tree.chi2_own.is_none());
     h.get_by_role_and_label(Role::ComboBox, "sampler").click();
     h.run_steps(2);
     h.get_by_label("cosine").click();
@@ -278,6 +281,13 @@ fn the_live_verdict_rejects_a_sampler_that_does_not_follow_f_cos() {
     assert!(
         !test.passed() && p < 1e-6,
         "cosine vs phong n=200 passed: p = {p}"
+    );
+    // Against its own pdf (cos θ/π, integrated over the cells) the same samples pass: the
+    // second χ² looks at the density the sampler claims, not at f·cos.
+    assert!(
+        test.passed_own(),
+        "cosine vs its own pdf: {:?}",
+        test.chi2_own
     );
 }
 
@@ -306,6 +316,13 @@ fn the_baked_sampler_follows_the_lobe_off_its_grid() {
         test.samples
     );
     assert!(test.passed(), "baked vs phong n=200: {:?}", test.chi2);
+    // And against its own pdf, the exact mixture of its rotated neighbours (issue #18,
+    // item 8), with the lost samples in a bin of their own.
+    assert!(
+        test.passed_own(),
+        "baked vs its own pdf: {:?}",
+        test.chi2_own
+    );
 }
 
 /// A file dropped on the window, as an integration delivers it.
