@@ -264,21 +264,19 @@ impl ViewerApp {
         if let Some(t) = self.live_test()
             && let Some(c) = &t.chi2
         {
-            out += &format!(
-                "chi2: {:.2}, dof {}, p {:.4}, {} at alpha {ALPHA}\n",
-                c.statistic,
-                c.dof,
-                c.p_value,
-                if t.passed() { "pass" } else { "reject" }
-            );
-            if let Some(c) = &t.chi2_own {
-                out += &format!(
-                    "chi2 own pdf: {:.2}, dof {}, p {:.4}, {} at alpha {ALPHA}\n",
+            // One line per χ²: against f·cos, then (when there is one) against the own pdf.
+            let line = |label: &str, c: &brdf_validate::ChiSquare, passed: bool| {
+                format!(
+                    "{label}: {:.2}, dof {}, p {:.4}, {} at alpha {ALPHA}\n",
                     c.statistic,
                     c.dof,
                     c.p_value,
-                    if t.passed_own() { "pass" } else { "reject" }
-                );
+                    if passed { "pass" } else { "reject" }
+                )
+            };
+            out += &line("chi2", c, t.passed());
+            if let Some(c) = &t.chi2_own {
+                out += &line("chi2 own pdf", c, t.passed_own());
             }
         }
         if let Some(e) = &self.results.error {
