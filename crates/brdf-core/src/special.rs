@@ -22,8 +22,9 @@ pub const ERFCX_SHORT_MAX: f64 = 6.0;
 /// erfcx's polynomials on the twelve intervals [i/2, (i + 1)/2] of [0, 6], in s = 4(x − cᵢ) ∈
 /// [−1, 1] (cᵢ the interval's centre), lowest power first: the degree-12 interpolants at the
 /// Chebyshev nodes, computed offline at 50 digits (mpmath). erfcx is entire, so they converge
-/// fast: in f64 Horner their worst relative error against erfcx on 201 points an interval is
-/// 9.4·10⁻¹⁶.
+/// fast: evaluated in f64 by Horner's rule offline, their worst relative error against erfcx
+/// on 201 points an interval was 9.4·10⁻¹⁶; [`erfcx_short`] evaluates them by Estrin's scheme,
+/// which its test holds to 2·10⁻¹⁵.
 #[allow(clippy::unreadable_literal)]
 const ERFCX_POLY: [[f64; 13]; 12] = [
     [

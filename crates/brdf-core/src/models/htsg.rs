@@ -287,7 +287,8 @@ pub fn conductor_fresnel(c: f64, eta: f64, kappa: f64) -> f64 {
     fresnel_of(c, e, 4.0 * eta * eta * kappa * kappa)
 }
 
-/// [`conductor_fresnel`] from e = η² − κ² − 1 and 4η²κ², with one division.
+/// [`conductor_fresnel`] from e = η² − κ² − 1 and 4η²κ², with two divisions (s·t = s²/c,
+/// and the last), where MODELS.md's form takes four.
 ///
 /// B = η² − κ² − s² is written e + c², so that for η = 1, κ = 0 (no interface) B, Q and a
 /// are exactly c², c², c and F is exactly 0, not rounding noise. The (a − c)² of Fs's

@@ -81,10 +81,11 @@ impl Brdf for OrenNayar {
         let (ci, co) = (wi.z.min(1.0), wo.z.min(1.0));
         let (ti, to) = (m::acos(ci), m::acos(co));
         let (alpha, beta) = (ti.max(to), ti.min(to));
-        // tan β and sin α from cosines (no tan of an angle near π/2); 1 − c² as (1 − c)(1 + c),
-        // which does not cancel for c near 1.
+        // sin β, tan β and sin α from cosines (no tan of an angle near π/2); 1 − c² as
+        // (1 − c)(1 + c), which does not cancel for c near 1.
         let (cb, ca) = (ci.max(co), ci.min(co));
-        let tan_beta = m::sqrt(((1.0 - cb) * (1.0 + cb)).max(0.0)) / cb;
+        let sin_beta = m::sqrt(((1.0 - cb) * (1.0 + cb)).max(0.0));
+        let tan_beta = sin_beta / cb;
         let sin_alpha = m::sqrt(((1.0 - ca) * (1.0 + ca)).max(0.0));
         let cdp = cos_delta_phi64(wi, wo);
         let b2p = 2.0 * beta / PI;
@@ -97,7 +98,6 @@ impl Brdf for OrenNayar {
         let c3 = self.c3 * q * q;
         // tan((α + β)/2) = (sin α + sin β)/(cos α + cos β), exactly: no tangent to call, and
         // the denominator is at least twice the grazing floor's cosine.
-        let sin_beta = tan_beta * cb;
         let tan_half_sum = (sin_alpha + sin_beta) / (ca + cb);
         let direct = self.c1 + cdp * c2 * tan_beta + (1.0 - cdp.abs()) * c3 * tan_half_sum;
         let inter = self.c4 * (1.0 - cdp * b2p * b2p);
