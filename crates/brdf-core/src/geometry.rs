@@ -195,8 +195,25 @@ pub(crate) fn unit_pair(wi: Vec3, wo: Vec3) -> Option<(DVec3, DVec3)> {
     if !(above_horizon(wi) && above_horizon(wo)) {
         return None;
     }
-    let (wi, wo) = (wi.as_dvec3(), wo.as_dvec3());
-    Some((wi / wi.length(), wo / wo.length()))
+    Some((normalize_f64(wi.as_dvec3()), normalize_f64(wo.as_dvec3())))
+}
+
+/// `v / |v|` for a finite, non-zero `v`, without a square root or a division when `v` is
+/// unit to f32 rounding (as nearly every direction a model or a sampler is handed is):
+/// there |v|² = 1 + e with |e| < 10⁻⁵, and 1/|v| = (1 + e)^(−½) = 1 − e/2 + 3e²/8 to
+/// within 5|e|³/16 < 4·10⁻¹⁶ — two multiply-adds on an evaluation's critical path instead
+/// of a square root and a division (about 30 cycles of latency, twice per `eval`).
+/// Elsewhere `v / |v|`. Within 2 ulp of `v / v.length()` for every finite non-zero `v`.
+#[inline(always)]
+#[must_use]
+pub fn normalize_f64(v: DVec3) -> DVec3 {
+    let l2 = v.length_squared();
+    let e = l2 - 1.0;
+    if e.abs() < 1e-5 {
+        v * (1.0 - e * (0.5 - 0.375 * e))
+    } else {
+        v / m::sqrt(l2)
+    }
 }
 
 /// cos^n α of the angle between two f64 unit vectors, computed without cancellation:
@@ -255,6 +272,39 @@ mod tests {
         let h = half_vector(w, mirror(w)).unwrap();
         assert!((h - Vec3::Z).length() < 1e-6);
         assert!(half_vector(w, -w).is_none());
+    }
+
+    #[test]
+    fn normalize_f64_is_division_by_the_length() {
+        // Near unit (the polynomial), at its switch, and far from unit (the division).
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for k in 0..200_000 {
+            let d = DVec3::new(next(), next(), next());
+            if d.length_squared() < 1e-6 {
+                continue;
+            }
+            let scale = match k % 4 {
+                0 => 1.0,
+                1 => 1.0 + 4.9e-6 * next(),
+                2 => 1.0 + 1e-3 * next(),
+                _ => 10f64.powf(30.0 * next()),
+            };
+            let v = d.normalize() * scale;
+            let (got, want) = (normalize_f64(v), v / v.length());
+            assert!(
+                (got - want).abs().max_element() <= 2.0 * f64::EPSILON,
+                "{v}: {got} vs {want}"
+            );
+        }
+        let v = Vec3::new(0.3, -0.4, 0.866).normalize();
+        let w = normalize_f64(v.as_dvec3());
+        assert!((w.length() - 1.0).abs() <= 2.0 * f64::EPSILON);
     }
 
     #[test]
