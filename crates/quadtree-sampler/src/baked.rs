@@ -45,7 +45,7 @@ use alloc::vec::Vec;
 use brdf_core::geometry::mirror;
 use brdf_core::{Brdf, BrdfSample, DiskMap, ParamSet, PeakHints, Symmetry};
 use core::sync::atomic::{AtomicU64, Ordering};
-use glam::{Vec2, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 use rand_core::Rng;
 
 /// The polar angle of the grid's last row of trees, in degrees. A `wi` beyond it (up to the
@@ -157,6 +157,9 @@ pub(crate) struct Slice {
     pub(crate) warp: WarpTable,
     /// The incident direction the tree was built for (unit f32, as the tree saw it).
     pub(crate) wi: Vec3,
+    /// Its mirror direction r(wi), unit in f64: where an anisotropic query's rotation
+    /// starts (derived, like the scales).
+    pub(crate) mirror: DVec3,
     /// Whether the tree has volume (a mixture skips a neighbour without).
     pub(crate) live: bool,
     /// The tree's square ↔ hemisphere map.
@@ -179,9 +182,11 @@ impl Slice {
         let map = tree.map();
         let j = f64::from(map.square_area_per_projected_solid_angle());
         let v = tree.volume();
+        let w = wi.as_dvec3();
         Self {
             warp,
             wi,
+            mirror: DVec3::new(-w.x, -w.y, w.z).normalize(),
             live: v > 0.0,
             map,
             warp_scale: j,
