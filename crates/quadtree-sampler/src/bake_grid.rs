@@ -55,9 +55,10 @@ impl PhiDomain {
 
     /// The orthogonal map F (a rotation about z or reflections) that brings `w` into the
     /// domain; F is its own kind of symmetry of f_r, so f_r(F wi, F wo) = f_r(wi, wo).
+    /// (The mixture applies it in parts: the isotropic fold written out, the others as
+    /// their [`PhiDomain::reflection`]; the tests hold those to this matrix.)
+    #[cfg(test)]
     pub(crate) fn fold(self, w: DVec3) -> DMat3 {
-        let sx = if w.x < 0.0 { -1.0 } else { 1.0 };
-        let sy = if w.y < 0.0 { -1.0 } else { 1.0 };
         match self {
             Self::Rotation => {
                 let r = m::sqrt(w.x * w.x + w.y * w.y);
@@ -69,10 +70,20 @@ impl PhiDomain {
                     DMat3::from_cols(DVec3::new(c, -s, 0.0), DVec3::new(s, c, 0.0), DVec3::Z)
                 }
             }
-            Self::Quadrant => DMat3::from_diagonal(DVec3::new(sx, sy, 1.0)),
-            Self::UpperHalf => DMat3::from_diagonal(DVec3::new(1.0, sy, 1.0)),
-            Self::RightHalf => DMat3::from_diagonal(DVec3::new(sx, 1.0, 1.0)),
-            Self::Circle => DMat3::IDENTITY,
+            _ => DMat3::from_diagonal(self.reflection(w)),
+        }
+    }
+
+    /// The fold of a domain other than [`PhiDomain::Rotation`] (a reflection in x, in y, in
+    /// both, or none) as the diagonal of its matrix: ±1 per axis. (It is its own inverse.)
+    pub(crate) fn reflection(self, w: DVec3) -> DVec3 {
+        let sx = if w.x < 0.0 { -1.0 } else { 1.0 };
+        let sy = if w.y < 0.0 { -1.0 } else { 1.0 };
+        match self {
+            Self::Quadrant => DVec3::new(sx, sy, 1.0),
+            Self::UpperHalf => DVec3::new(1.0, sy, 1.0),
+            Self::RightHalf => DVec3::new(sx, 1.0, 1.0),
+            Self::Rotation | Self::Circle => DVec3::ONE,
         }
     }
 }
@@ -297,6 +308,33 @@ mod tests {
     use super::*;
 
     /// The isotropic fast path is the minimal rotation between the two mirror directions.
+    /// Each reflection domain's fold is the diagonal of its signs and brings every direction
+    /// into the domain's φ range.
+    #[test]
+    fn reflections_are_the_folds() {
+        for d in [
+            PhiDomain::Quadrant,
+            PhiDomain::UpperHalf,
+            PhiDomain::RightHalf,
+            PhiDomain::Circle,
+        ] {
+            for k in 0..64 {
+                let phi = core::f64::consts::TAU * (f64::from(k) + 0.5) / 64.0;
+                let w = DVec3::new(0.6 * phi.cos(), 0.6 * phi.sin(), 0.8);
+                assert_eq!(d.fold(w), DMat3::from_diagonal(d.reflection(w)));
+                let f = w * d.reflection(w);
+                let (lo, hi) = d.range();
+                let p = f.y.atan2(f.x);
+                let p = if d == PhiDomain::Circle && p < 0.0 {
+                    p + core::f64::consts::TAU
+                } else {
+                    p
+                };
+                assert!(p >= lo - 1e-12 && p <= hi + 1e-12, "{d:?} {phi}: {p}");
+            }
+        }
+    }
+
     #[test]
     fn fast_atan2_is_within_its_bound() {
         for k in 0..=20_000 {

@@ -159,12 +159,14 @@ impl BakedSampler {
             } else {
                 (1.0, 0.0)
             };
-            (DVec3::new(r, 0.0, g.z), cs, DMat3::IDENTITY, DVec3::Z)
+            (DVec3::new(r, 0.0, g.z), cs, DVec3::ONE, DVec3::Z)
         } else {
-            let fold = self.grid.domain().fold(g);
-            let gc = fold * g;
+            // The fold is a reflection (diagonal ±1, its own inverse): unfolding a matrix
+            // scales its rows, not a matrix product.
+            let signs = self.grid.domain().reflection(g);
+            let gc = g * signs;
             let mc = DVec3::new(-gc.x, -gc.y, gc.z).normalize();
-            (gc, (1.0, 0.0), fold.transpose(), mc)
+            (gc, (1.0, 0.0), signs, mc)
         };
         for (slice, w) in self.grid.neighbours(gc) {
             if w <= 0.0 || !tables.slices[slice].live {
@@ -179,7 +181,8 @@ impl BakedSampler {
                 let wk = tables.slices[slice].wi.as_dvec3();
                 isotropic_to_local(cs, rotation_between_mirrors_xz(wk, gc))
             } else {
-                unfold * rotation_arc(tables.slices[slice].mirror, mc)
+                let r = rotation_arc(tables.slices[slice].mirror, mc);
+                DMat3::from_cols(r.x_axis * unfold, r.y_axis * unfold, r.z_axis * unfold)
             };
             out[n] = Component {
                 slice,
