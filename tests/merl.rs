@@ -23,20 +23,48 @@ fn brdf(args: &[&str]) -> Output {
         .expect("run brdf")
 }
 
-fn dir() -> PathBuf {
-    let d = std::env::temp_dir().join(format!("brdf-merl-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A scratch directory of the test's own, removed with everything in it when dropped.
+fn scratch() -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix("brdf-merl-cli-")
+        .tempdir()
+        .unwrap()
 }
 
-/// Writes `model`'s tabulation, changed by `edit`, as `name` in the test directory.
-fn file(name: &str, model: &str, params: &[&str], edit: impl Fn(&mut [[f64; 3]])) -> PathBuf {
+/// A file written to a scratch directory of its own, removed with it when this is dropped
+/// (a tabulated MERL file is 35 MB).
+struct TempFile {
+    _dir: tempfile::TempDir,
+    path: PathBuf,
+}
+
+impl std::ops::Deref for TempFile {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.path
+    }
+}
+
+impl AsRef<Path> for TempFile {
+    fn as_ref(&self) -> &Path {
+        &self.path
+    }
+}
+
+/// Writes `data` as `name` in a scratch directory of its own.
+fn write_temp(name: &str, data: &[[f64; 3]]) -> TempFile {
+    let dir = scratch();
+    let path = dir.path().join(name);
+    std::fs::write(&path, merl::encode(data)).unwrap();
+    TempFile { _dir: dir, path }
+}
+
+/// Writes `model`'s tabulation, changed by `edit`, as `name` in a scratch directory.
+fn file(name: &str, model: &str, params: &[&str], edit: impl Fn(&mut [[f64; 3]])) -> TempFile {
     let m = registry::create(model, params.iter().copied()).unwrap();
     let mut f = merl::tabulate(&*m);
     edit(&mut f);
-    let path = dir().join(name);
-    std::fs::write(&path, merl::encode(&f)).unwrap();
-    path
+    write_temp(name, &f)
 }
 
 fn file_param(p: &Path) -> String {
@@ -45,7 +73,8 @@ fn file_param(p: &Path) -> String {
 
 #[test]
 fn tabulate_writes_a_file_merl_reproduces_at_bin_centres() {
-    let out = dir().join("ct.binary");
+    let dir = scratch();
+    let out = dir.path().join("ct.binary");
     let o = brdf(&[
         "tabulate",
         "--model",
@@ -118,7 +147,7 @@ fn tabulate_writes_a_file_merl_reproduces_at_bin_centres() {
         out.to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(2));
-    let missing = dir().join("no-such-dir").join("x.binary");
+    let missing = dir.path().join("no-such-dir").join("x.binary");
     let o = brdf(&[
         "tabulate",
         "--model",
@@ -165,17 +194,18 @@ fn models_json_describes_path_and_choice_parameters() {
 fn malformed_files_are_usage_errors_naming_the_file() {
     let good = file("good.binary", "lambert", &[], |_| {});
     let bytes = std::fs::read(&good).unwrap();
-    let truncated = dir().join("truncated.binary");
+    let dir = scratch();
+    let truncated = dir.path().join("truncated.binary");
     std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
     let mut nan = bytes.clone();
     nan[12 + 8 * 77..12 + 8 * 78].copy_from_slice(&f64::NAN.to_le_bytes());
-    let nan_file = dir().join("nan.binary");
+    let nan_file = dir.path().join("nan.binary");
     std::fs::write(&nan_file, &nan).unwrap();
     for (path, words) in [
         (truncated.clone(), "truncated"),
         (nan_file.clone(), "NaN or infinite"),
-        (dir().join("absent.binary"), "no such file"),
-        (dir(), "directory"),
+        (dir.path().join("absent.binary"), "no such file"),
+        (dir.path().to_path_buf(), "directory"),
     ] {
         for sub in [
             &["eval"][..],
@@ -273,20 +303,18 @@ fn validate(path: &Path, extra_params: &[&str], run: u64, extent: Extent) {
 }
 
 /// Blinn–Phong n = 1000, tabulated (each test its own copy: tests run in parallel).
-fn sharp(name: &str) -> PathBuf {
+fn sharp(name: &str) -> TempFile {
     file(name, "blinn-phong", &["n=1000", "kd=0"], |_| {})
 }
 
 /// Like real data: 3 % multiplicative noise on every bin (a fixed seed), and every bin with
 /// θd beyond 85° "not measured" (negative in the file): the benches' measured set.
-fn measured(name: &str) -> PathBuf {
+fn measured(name: &str) -> TempFile {
     let ct = registry::create("cook-torrance", ["m=0.1", "kd=0.1"]).unwrap();
     let f = brdf_sampling::bench::measured_like(&*ct, 0.03, 42);
     let unmeasured = f.iter().filter(|v| v[0] < 0.0).count();
     assert_eq!(unmeasured, 90 * 5 * 180);
-    let path = dir().join(name);
-    std::fs::write(&path, merl::encode(&f)).unwrap();
-    path
+    write_temp(name, &f)
 }
 
 /// The nearest lookup is piecewise constant: the integrators take ~10 s a wi on it, so CI

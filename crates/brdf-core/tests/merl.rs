@@ -14,10 +14,33 @@ use rand::{RngExt, SeedableRng};
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::{Path, PathBuf};
 
-fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("brdf-merl-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A path named `name` in a directory of its own, removed with everything in it when this
+/// is dropped (a tabulated MERL file is 35 MB; a run writes a dozen).
+struct TempFile {
+    _dir: tempfile::TempDir,
+    path: PathBuf,
+}
+
+impl std::ops::Deref for TempFile {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.path
+    }
+}
+
+impl AsRef<Path> for TempFile {
+    fn as_ref(&self) -> &Path {
+        &self.path
+    }
+}
+
+fn temp(name: &str) -> TempFile {
+    let dir = tempfile::Builder::new()
+        .prefix("brdf-merl-")
+        .tempdir()
+        .unwrap();
+    let path = dir.path().join(name);
+    TempFile { _dir: dir, path }
 }
 
 fn open(path: &Path, interp: &str) -> Result<Box<dyn Brdf>, ParamError> {
@@ -145,7 +168,7 @@ fn bin_indices_equal_the_database_readers() {
 }
 
 /// A model with a sharp lobe and distinct channels, tabulated; the file read back by `merl`.
-fn tabulated(name: &str, model: &dyn Brdf) -> PathBuf {
+fn tabulated(name: &str, model: &dyn Brdf) -> TempFile {
     let path = temp(name);
     std::fs::write(&path, encode(&merl::tabulate(model))).unwrap();
     path
