@@ -89,20 +89,24 @@ pub fn measured_like(model: &dyn Brdf, noise: f64, seed: u64) -> Vec<[f64; 3]> {
 }
 
 /// The benches' measured file: Cook–Torrance m = 0.1, kd = 0.1 through [`measured_like`]
-/// (3 % noise, seed 42), written once per process into the temporary directory (complete or
-/// absent: written beside and renamed).
+/// (3 % noise, seed 42), in the temporary directory under one name for every process (its
+/// bytes are a pure function of this code): reused when it holds exactly these bytes, else
+/// written (complete or absent: written beside and renamed, so processes that write it at
+/// once each leave the same file). One 35 MB file, however many runs; a name per process
+/// left one behind per `brdf bench` run.
 ///
 /// # Panics
 /// When the temporary directory cannot be written.
 pub fn measured_file() -> &'static std::path::Path {
     static FILE: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
     FILE.get_or_init(|| {
-        let path =
-            std::env::temp_dir().join(format!("brdf-bench-measured-{}.binary", std::process::id()));
+        let path = std::env::temp_dir().join("brdf-bench-measured.binary");
         let ct = registry::create("cook-torrance", ["m=0.1", "kd=0.1"]).expect("valid parameters");
         let bytes = crate::models::merl::encode(&measured_like(&*ct, 0.03, 42));
-        crate::quadtree_sampler::write_atomically(&path, &bytes)
-            .unwrap_or_else(|e| panic!("writing {}: {e}", path.display()));
+        if std::fs::read(&path).ok().as_deref() != Some(&bytes[..]) {
+            crate::quadtree_sampler::write_atomically(&path, &bytes)
+                .unwrap_or_else(|e| panic!("writing {}: {e}", path.display()));
+        }
         path
     })
 }
