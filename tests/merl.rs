@@ -31,32 +31,16 @@ fn scratch() -> tempfile::TempDir {
         .unwrap()
 }
 
-/// A file written to a scratch directory of its own, removed with it when this is dropped
-/// (a tabulated MERL file is 35 MB).
-struct TempFile {
-    _dir: tempfile::TempDir,
-    path: PathBuf,
-}
-
-impl std::ops::Deref for TempFile {
-    type Target = Path;
-    fn deref(&self) -> &Path {
-        &self.path
-    }
-}
-
-impl AsRef<Path> for TempFile {
-    fn as_ref(&self) -> &Path {
-        &self.path
-    }
-}
+/// A file in a scratch directory of its own, which goes (with the 35 MB file) when the
+/// directory is dropped: keep it alive while the path is used.
+type TempFile = (tempfile::TempDir, PathBuf);
 
 /// Writes `data` as `name` in a scratch directory of its own.
 fn write_temp(name: &str, data: &[[f64; 3]]) -> TempFile {
     let dir = scratch();
     let path = dir.path().join(name);
     std::fs::write(&path, merl::encode(data)).unwrap();
-    TempFile { _dir: dir, path }
+    (dir, path)
 }
 
 /// Writes `model`'s tabulation, changed by `edit`, as `name` in a scratch directory.
@@ -192,7 +176,7 @@ fn models_json_describes_path_and_choice_parameters() {
 
 #[test]
 fn malformed_files_are_usage_errors_naming_the_file() {
-    let good = file("good.binary", "lambert", &[], |_| {});
+    let (_good_dir, good) = file("good.binary", "lambert", &[], |_| {});
     let bytes = std::fs::read(&good).unwrap();
     let dir = scratch();
     let truncated = dir.path().join("truncated.binary");
@@ -321,18 +305,18 @@ fn measured(name: &str) -> TempFile {
 /// runs one wi and the full run is `--ignored`.
 #[test]
 fn merl_of_a_sharp_lobe_passes_with_the_nearest_lookup() {
-    validate(&sharp("sharp.binary"), &[], 0, Extent::Quick);
+    validate(&sharp("sharp.binary").1, &[], 0, Extent::Quick);
 }
 
 #[test]
 #[ignore = "about 100 s: cargo test --release --test tests merl -- --ignored"]
 fn merl_of_a_sharp_lobe_passes_with_the_nearest_lookup_full() {
-    validate(&sharp("sharp-full.binary"), &[], 0, Extent::Full);
+    validate(&sharp("sharp-full.binary").1, &[], 0, Extent::Full);
 }
 
 #[test]
 fn merl_of_a_sharp_lobe_passes_with_the_linear_lookup() {
-    let f = file(
+    let (_dir, f) = file(
         "ct-sharp.binary",
         "cook-torrance",
         &["m=0.05", "kd=0.05"],
@@ -343,26 +327,26 @@ fn merl_of_a_sharp_lobe_passes_with_the_linear_lookup() {
 
 #[test]
 fn merl_of_a_diffuse_model_passes() {
-    let f = file("diffuse.binary", "oren-nayar", &[], |_| {});
+    let (_dir, f) = file("diffuse.binary", "oren-nayar", &[], |_| {});
     validate(&f, &[], 2, Extent::Full);
 }
 
 #[test]
 fn merl_of_noisy_data_with_unmeasured_bins_passes() {
-    validate(&measured("measured.binary"), &[], 3, Extent::Quick);
+    validate(&measured("measured.binary").1, &[], 3, Extent::Quick);
 }
 
 #[test]
 #[ignore = "about 150 s: cargo test --release --test tests merl -- --ignored"]
 fn merl_of_noisy_data_with_unmeasured_bins_passes_full() {
-    validate(&measured("measured-full.binary"), &[], 3, Extent::Full);
+    validate(&measured("measured-full.binary").1, &[], 3, Extent::Full);
 }
 
 /// The negative control on the same file as the sharp run: cosine sampling does not follow
 /// f·cos there, and `brdf test` rejects it (exit status 1), naming the χ² against f·cos.
 #[test]
 fn a_sampler_that_does_not_follow_merl_is_rejected() {
-    let path = sharp("sharp-control.binary");
+    let (_dir, path) = sharp("sharp-control.binary");
     let fp = file_param(&path);
     let o = brdf(&[
         "test",
