@@ -41,6 +41,26 @@ pub struct ChiSquare {
     pub bins: usize,
 }
 
+/// Pearson's χ² against a sampler's own pdf: `observed` counts per cell and `lost` samples
+/// (no direction, or none in a cell) out of `samples` drawn, against `samples` × each cell's
+/// `probability` under that pdf, the lost bin expecting what the cells leave of 1 (their
+/// sum is at most 1; [`crate::Validation::own_probability`] gives them). Pooled as
+/// [`chi_square`].
+#[must_use]
+pub fn chi_square_with_lost(
+    observed: &[u64],
+    lost: u64,
+    samples: u64,
+    probability: &[f64],
+) -> Option<ChiSquare> {
+    let m = samples as f64;
+    let mut expected: Vec<f64> = probability.iter().map(|x| m * x).collect();
+    expected.push(m * (1.0 - probability.iter().sum::<f64>()).max(0.0));
+    let mut observed = observed.to_vec();
+    observed.push(lost);
+    chi_square(&observed, &expected)
+}
+
 /// Pearson's χ² of `observed` counts against `expected` counts (same length), pooling
 /// cells whose expected count is below 5 (in increasing order of expectation, until each pool
 /// reaches 5; a last short pool joins the previous bin). `None` when fewer than two bins

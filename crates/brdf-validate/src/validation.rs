@@ -19,7 +19,7 @@ use crate::error::ValidateError;
 use crate::histogram::Histogram;
 use crate::report::{Against, Reason, Report};
 use crate::sampler::Sampler;
-use crate::stats::{chi_square, spread};
+use crate::stats::{chi_square, chi_square_with_lost, spread};
 use brdf_core::Brdf;
 use brdf_core::geometry::unit_direction_above;
 use glam::{DVec3, Vec3};
@@ -297,12 +297,8 @@ impl Validation {
         // χ² against the sampler's own pdf.
         let own = self.own_probability(&|w: Vec3| f64::from(sampler.pdf(w)));
         let own_total: f64 = own.iter().sum();
-        let mut expected_own: Vec<f64> = own.iter().map(|x| m * x).collect();
-        let mut observed_own = observed.clone();
-        expected_own.push(m * (1.0 - own_total).max(0.0));
-        observed_own.push(lost);
-        let chi2_own = chi_square(&observed_own, &expected_own);
-        expected_own.pop();
+        let chi2_own = chi_square_with_lost(&observed, lost, samples, &own);
+        let expected_own: Vec<f64> = own.iter().map(|x| m * x).collect();
         if own_total > 1.0 + 1e-3 {
             reasons.push(Reason::PdfAboveOne {
                 integral: own_total,

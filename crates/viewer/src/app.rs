@@ -16,7 +16,7 @@ use crate::worker::{Request, SampleState, SamplerKind, Update, Worker};
 use brdf_core::geometry::spherical_angles;
 use brdf_core::registry;
 use brdf_core::{Brdf, DiskMap, ParamKind, ParamValue};
-use brdf_validate::{CellGrid, Histogram, chi_square};
+use brdf_validate::{CellGrid, Histogram, chi_square, chi_square_with_lost};
 use eframe::egui::scroll_area::ScrollBarVisibility;
 use eframe::egui::{self, Rect, TextureHandle, TextureOptions, vec2};
 use glam::{Vec2, Vec3};
@@ -314,12 +314,7 @@ impl ViewerApp {
             .as_ref()
             .filter(|(g, p)| g == grid && p.len() == mass.len())
             .and_then(|(_, p)| {
-                let m = samples.drawn as f64;
-                let mut expected: Vec<f64> = p.iter().map(|x| m * x).collect();
-                expected.push(m * (1.0 - p.iter().sum::<f64>()).max(0.0));
-                let mut observed = samples.counts.clone();
-                observed.push(samples.drawn - landed);
-                chi_square(&observed, &expected)
+                chi_square_with_lost(&samples.counts, samples.drawn - landed, samples.drawn, p)
             });
         Some(LiveTest {
             samples: landed,
