@@ -43,7 +43,8 @@ pub(crate) struct BenchArgs {
 /// and until 1.5 s have passed (at most 40 times each); the fastest run of each, and `b`'s
 /// last result. A slow spell on a 2-core machine can outlast half a second: with a 0.5 s
 /// window about one process in four saw every parallel build of a set slow (phong-sharp's
-/// rayon speedup 1.31–1.79 instead of 1.9).
+/// rayon speedup 1.31–1.79 instead of 1.9). The longer window makes that rarer, not
+/// impossible: spells of several seconds still print low speedups now and then.
 fn fastest_pair<T, U>(mut a: impl FnMut() -> T, mut b: impl FnMut() -> U) -> (f64, U, f64) {
     let start = Instant::now();
     let (mut best_a, mut best_b) = (f64::INFINITY, f64::INFINITY);
