@@ -10,9 +10,7 @@ use alloc::vec::Vec;
 use brdf_core::Symmetry;
 use brdf_core::math as m;
 use core::f64::consts::{FRAC_PI_2, PI, TAU};
-#[cfg(test)]
-use glam::DQuat;
-use glam::{DMat3, DVec3, Vec3};
+use glam::{DMat3, DQuat, DVec3, Vec3};
 
 /// The part of the φi circle a grid covers, from the model's declared symmetries.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -290,6 +288,29 @@ pub(crate) fn rotation_between_mirrors_xz(from: DVec3, to: DVec3) -> (f64, f64) 
     (cf * ct + sf * st, sf * ct - cf * st)
 }
 
+/// The rotation matrix carrying unit `a` onto unit `b` about their common normal (the one
+/// `DQuat::from_rotation_arc` gives, a test says so), by Rodrigues' formula with
+/// v = a × b, c = a·b: R = c·I + [v]× + v vᵀ/(1 + c). One division and no square root, where
+/// the quaternion's construction and its matrix take a normalisation and twice the products;
+/// it runs for every neighbour of every anisotropic `sample` and `pdf`. Mirror directions
+/// of upper-hemisphere directions that are grid neighbours are never near antipodal; for
+/// 1 + c below 10⁻⁹ the quaternion's construction takes over (it picks an axis).
+#[inline]
+pub(crate) fn rotation_arc(a: DVec3, b: DVec3) -> DMat3 {
+    let c = a.dot(b);
+    if 1.0 + c < 1e-9 {
+        return DMat3::from_quat(DQuat::from_rotation_arc(a, b));
+    }
+    let v = a.cross(b);
+    let k = 1.0 / (1.0 + c);
+    let (kx, ky, kz) = (k * v.x, k * v.y, k * v.z);
+    DMat3::from_cols(
+        DVec3::new(c + kx * v.x, v.z + kx * v.y, -v.y + kx * v.z),
+        DVec3::new(-v.z + ky * v.x, c + ky * v.y, v.x + ky * v.z),
+        DVec3::new(v.y + kz * v.x, -v.x + kz * v.y, c + kz * v.z),
+    )
+}
+
 /// R_z(φ)·R_y(α) from (cos φ, sin φ) and (cos α, sin α), written out: an isotropic
 /// neighbour's map from its tree's frame to the local frame (the rotation between the
 /// mirrors, then the unfolding rotation about z). Equal to the product of the two matrices
@@ -331,6 +352,37 @@ mod tests {
                     p
                 };
                 assert!(p >= lo - 1e-12 && p <= hi + 1e-12, "{d:?} {phi}: {p}");
+            }
+        }
+    }
+
+    /// Rodrigues' matrix is the quaternion's minimal rotation, and carries a onto b, for
+    /// pairs of upper-hemisphere mirror directions near and far apart (down to 1 + c just
+    /// above the switch) and for the antipodal fallback.
+    #[test]
+    fn rotation_arc_is_the_quaternion_arc() {
+        let dir = |t: f64, p: f64| DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos());
+        let mut pairs = alloc::vec::Vec::new();
+        for i in 0..40 {
+            for j in 0..40 {
+                let (t0, p0) = (1.55 * f64::from(i) / 39.0, 0.7 * f64::from(i));
+                let (t1, p1) = (1.55 * f64::from(j) / 39.0, 0.3 + 0.45 * f64::from(j));
+                pairs.push((dir(t0, p0), dir(t1, p1)));
+            }
+        }
+        let a = dir(1.5, 0.0);
+        pairs.push((a, dir(1.5, core::f64::consts::PI - 1e-4)));
+        pairs.push((a, -a));
+        for (a, b) in pairs {
+            let (fast, arc) = (
+                rotation_arc(a, b),
+                DMat3::from_quat(DQuat::from_rotation_arc(a, b)),
+            );
+            assert!((fast * a - b).length() < 1e-12, "{a} → {b}");
+            if 1.0 + a.dot(b) > 1e-6 {
+                for v in [DVec3::X, DVec3::Y, DVec3::Z, a.cross(b), a + b] {
+                    assert!((fast * v - arc * v).length() < 1e-9, "{a} → {b} on {v}");
+                }
             }
         }
     }

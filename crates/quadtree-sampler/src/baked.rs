@@ -293,7 +293,7 @@ impl DeltaShare {
             .map(|i| {
                 // cos θ = i/n in the xz-plane; the horizon node asks just above it.
                 let z = (i as f64 / n as f64).max(1e-7);
-                let w = glam::DVec3::new(brdf_core::math::sqrt((1.0 - z) * (1.0 + z)), 0.0, z);
+                let w = DVec3::new(brdf_core::math::sqrt((1.0 - z) * (1.0 + z)), 0.0, z);
                 brdf.delta_probability(w.as_vec3())
             })
             .collect();
@@ -672,7 +672,7 @@ mod tests {
             let table = DeltaShare::new(&*htsg).expect("htsg has a delta part");
             for k in 0..=20_000 {
                 let theta = f64::from(k) / 20_000.0 * 0.4999 * core::f64::consts::PI;
-                let w = glam::DVec3::new(theta.sin(), 0.0, theta.cos()).as_vec3();
+                let w = DVec3::new(theta.sin(), 0.0, theta.cos()).as_vec3();
                 for w in [w, Vec3::new(-w.x * 0.6, w.x * 0.8, w.z)] {
                     let (got, want) = (table.at(&*htsg, w), htsg.delta_probability(w));
                     assert!(

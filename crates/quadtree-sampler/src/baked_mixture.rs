@@ -27,7 +27,7 @@
 //!   without evaluating the model (the neighbour that drew a sample gives its leaf's density
 //!   without a look-up while the sample's direction maps back into that leaf).
 
-use crate::bake_grid::{PhiDomain, isotropic_to_local, rotation_between_mirrors_xz};
+use crate::bake_grid::{PhiDomain, isotropic_to_local, rotation_arc, rotation_between_mirrors_xz};
 use crate::baked::{BakedMode, BakedSampler, Role, Tables};
 use crate::sampler::{Sample, rejection_in_leaf};
 use crate::warp_table::WarpLeaf;
@@ -35,7 +35,7 @@ use brdf_core::geometry::{above_horizon, luminance};
 use brdf_core::math as m;
 use brdf_core::warp::sample_cosine_hemisphere;
 use core::sync::atomic::Ordering;
-use glam::{DMat3, DQuat, DVec3, Vec2, Vec3};
+use glam::{DMat3, DVec3, Vec2, Vec3};
 use rand_core::Rng;
 
 /// What the draw of a sample knows of its own component's density.
@@ -72,29 +72,6 @@ fn near_unit(v: DVec3) -> DVec3 {
     } else {
         v.normalize_or_zero()
     }
-}
-
-/// The rotation matrix carrying unit `a` onto unit `b` about their common normal (the one
-/// `DQuat::from_rotation_arc` gives, a test says so), by Rodrigues' formula with
-/// v = a × b, c = a·b: R = c·I + [v]× + v vᵀ/(1 + c). One division and no square root, where
-/// the quaternion's construction and its matrix take a normalisation and twice the products;
-/// it runs for every neighbour of every anisotropic `sample` and `pdf`. Mirror directions
-/// of upper-hemisphere directions that are grid neighbours are never near antipodal; for
-/// 1 + c below 10⁻⁹ the quaternion's construction takes over (it picks an axis).
-#[inline]
-pub(crate) fn rotation_arc(a: DVec3, b: DVec3) -> DMat3 {
-    let c = a.dot(b);
-    if 1.0 + c < 1e-9 {
-        return DMat3::from_quat(DQuat::from_rotation_arc(a, b));
-    }
-    let v = a.cross(b);
-    let k = 1.0 / (1.0 + c);
-    let (kx, ky, kz) = (k * v.x, k * v.y, k * v.z);
-    DMat3::from_cols(
-        DVec3::new(c + kx * v.x, v.z + kx * v.y, -v.y + kx * v.z),
-        DVec3::new(-v.z + ky * v.x, c + ky * v.y, v.x + ky * v.z),
-        DVec3::new(v.y + kz * v.x, -v.x + kz * v.y, c + kz * v.z),
-    )
 }
 
 /// One neighbour of a query: its tree, weight, and the map from its tree's frame to the
@@ -368,41 +345,5 @@ impl BakedSampler {
         }
         let f = self.eval_unit(role, given, wo);
         Sample::continuous(wo, f, pdf).map(|s| Sample { trials, ..s })
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Rodrigues' matrix is the quaternion's minimal rotation, and carries a onto b, for
-    /// pairs of upper-hemisphere mirror directions near and far apart (down to 1 + c just
-    /// above the switch) and for the antipodal fallback.
-    #[test]
-    fn rotation_arc_is_the_quaternion_arc() {
-        let dir = |t: f64, p: f64| DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos());
-        let mut pairs = alloc::vec::Vec::new();
-        for i in 0..40 {
-            for j in 0..40 {
-                let (t0, p0) = (1.55 * f64::from(i) / 39.0, 0.7 * f64::from(i));
-                let (t1, p1) = (1.55 * f64::from(j) / 39.0, 0.3 + 0.45 * f64::from(j));
-                pairs.push((dir(t0, p0), dir(t1, p1)));
-            }
-        }
-        let a = dir(1.5, 0.0);
-        pairs.push((a, dir(1.5, core::f64::consts::PI - 1e-4)));
-        pairs.push((a, -a));
-        for (a, b) in pairs {
-            let (fast, arc) = (
-                rotation_arc(a, b),
-                DMat3::from_quat(DQuat::from_rotation_arc(a, b)),
-            );
-            assert!((fast * a - b).length() < 1e-12, "{a} → {b}");
-            if 1.0 + a.dot(b) > 1e-6 {
-                for v in [DVec3::X, DVec3::Y, DVec3::Z, a.cross(b), a + b] {
-                    assert!((fast * v - arc * v).length() < 1e-9, "{a} → {b} on {v}");
-                }
-            }
-        }
     }
 }
