@@ -36,8 +36,10 @@ pub const BAKE_MAGIC: [u8; 8] = *b"BRDFBAKE";
 /// The format version this library writes and reads. Version 2: leaves may use the
 /// transposed angle chart, and the models evaluate with the grazing floor
 /// (`brdf_core::geometry::GRAZING_COS`). Version 3: the root and its children may use the
-/// polar chart (orthographic trees). Files of earlier versions must be baked again.
-pub const BAKE_FORMAT_VERSION: u32 = 3;
+/// polar chart (orthographic trees). Version 4: leaves may carry a height shape
+/// ([`crate::proposal::Shape`], in bits 3–26 of a leaf's link word). Files of earlier
+/// versions must be baked again.
+pub const BAKE_FORMAT_VERSION: u32 = 4;
 
 const HEADER: usize = 8 + 4 + 8;
 const TRAILER: usize = 4;

@@ -11,9 +11,9 @@ use alloc::vec::Vec;
 use brdf_core::{Brdf, DiskMap, math as m};
 use glam::{DVec2, DVec3};
 
-/// Orthographic: azimuths of points on the unit circle inside `rect`: nine per arc, ends
+/// Orthographic: azimuths of points on the unit circle inside `rect`: `n` per arc, ends
 /// included (nudged inside). The arcs' ends are where the circle crosses the rectangle's edges.
-fn rim_arc_points(rect: &Rect) -> Vec<f64> {
+fn rim_arc_points(rect: &Rect, n: usize) -> Vec<f64> {
     use core::f64::consts::{PI, TAU};
     let mut cuts: Vec<f64> = Vec::with_capacity(10);
     for x in [rect.min.x, rect.max.x] {
@@ -49,19 +49,20 @@ fn rim_arc_points(rect: &Rect) -> Vec<f64> {
             continue;
         }
         let pad = (b - a) * 1e-9;
-        points.extend((0..9).map(|j| a + pad + (b - a - 2.0 * pad) * j as f64 / 8.0));
+        let last = (n - 1) as f64;
+        points.extend((0..n).map(|j| a + pad + (b - a - 2.0 * pad) * j as f64 / last));
     }
     points
 }
 
 /// Concentric: the rim is the square's edge. Points (cos φ, sin φ) of the rim directions of the
-/// node's stretches of it: nine per edge it lies on, ends included (nudged inside).
-fn edge_rim_points(rect: &Rect) -> Vec<(f64, f64)> {
+/// node's stretches of it: `n` per edge it lies on, ends included (nudged inside).
+fn edge_rim_points(rect: &Rect, n: usize) -> Vec<(f64, f64)> {
     let mut points = Vec::new();
     let mut stretch = |p0: DVec2, p1: DVec2| {
         let pad = (p1 - p0) * 1e-9;
-        for j in 0..9 {
-            let p = p0 + pad + (p1 - p0 - 2.0 * pad) * (j as f64 / 8.0);
+        for j in 0..n {
+            let p = p0 + pad + (p1 - p0 - 2.0 * pad) * (j as f64 / (n - 1) as f64);
             let w = DiskMap::Concentric
                 .square_to_direction_f64(p)
                 .unwrap_or(DVec3::Z);
@@ -87,14 +88,15 @@ fn edge_rim_points(rect: &Rect) -> Vec<(f64, f64)> {
     points
 }
 
-/// The node's rim points (cos φ, sin φ) under `map` ([`rim_arc_points`], [`edge_rim_points`]).
-fn rim_points(map: DiskMap, rect: &Rect) -> Vec<(f64, f64)> {
+/// The node's rim points (cos φ, sin φ) under `map`, `n` per arc or edge ([`rim_arc_points`],
+/// [`edge_rim_points`]).
+fn rim_points(map: DiskMap, rect: &Rect, n: usize) -> Vec<(f64, f64)> {
     match map {
-        DiskMap::Orthographic => rim_arc_points(rect)
+        DiskMap::Orthographic => rim_arc_points(rect, n)
             .into_iter()
             .map(|phi| (m::cos(phi), m::sin(phi)))
             .collect(),
-        DiskMap::Concentric => edge_rim_points(rect),
+        DiskMap::Concentric => edge_rim_points(rect, n),
     }
 }
 
@@ -121,69 +123,27 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
             .map_or(0.0, |c| self.f(c.w) * c.jacobian)
     }
 
-    /// M for `prop` on a node of integral `v1` whose integration met `peak`: the bound
-    /// search ([`Self::bound`]) from the integration's largest height, no less than f's limit
-    /// at the rim where one is given (times the safety factor), rounded up to f32.
-    pub(crate) fn proposal_bound(
-        &self,
-        prop: &Proposal,
-        rect: &Rect,
-        peak: &Peak,
-        v1: f64,
-        rim_limit: Option<f64>,
-    ) -> f64 {
-        if prop.chart == Chart::Polar {
-            // The same points as the square's part of the disk, each with height f·½: half
-            // the square's bound (exact in f32) bounds it.
-            let square = Proposal::in_chart(rect, Chart::Square);
-            return 0.5 * self.proposal_bound(&square, rect, peak, v1, rim_limit);
-        }
-        // A bound below the node's mean height is certainly wrong (a peak between the points
-        // looked at): take four times the mean instead, so that P = ¼ splits the node.
-        let mean = if prop.area() > 0.0 {
-            v1 / prop.area()
+    /// What the bound search maximises at chart point q: the height over the proposal's
+    /// shape, h/S (the height itself for a flat box, where S ≡ 1 exactly).
+    #[inline]
+    fn score(&self, prop: &Proposal, rect: &Rect, q: DVec2) -> f64 {
+        let h = self.height(prop, rect, q);
+        if prop.shape.is_flat() {
+            h
         } else {
-            0.0
-        };
-        // The integration refined itself into every sharp feature of the node: its largest
-        // value (in the proposal's chart) is a bound candidate and a search seed.
-        let seed = match prop.chart {
-            // (Polar boxes took the square's bound above.)
-            Chart::Square | Chart::Polar => (peak.f, peak.p),
-            Chart::Angle | Chart::Sine => (peak.fj, peak.q),
-            Chart::AngleY => (peak.fjy, peak.qy),
-        };
-        let mut found = self.bound(prop, rect, seed);
-        if let Some(limit) = rim_limit {
-            found = found.max(limit * self.config.bound_safety);
+            h / prop.shape.value(prop.unit(q))
         }
-        // (The comparison allows for rounding: a constant f integrates to its value times
-        // the area only up to the rule's last bits, and must not be taken for a missed peak.)
-        let bound = if found >= mean * self.config.bound_safety * (1.0 - 1e-9) {
-            found
-        } else {
-            4.0 * mean
-        };
-        // The sampling layout keeps M in f32: round it up here, so that the tree's E[T] (and
-        // every decision taken on it) is the one sampling will see.
-        f64::from(round_up_f32(bound))
     }
 
-    /// M: the largest h found on a dense grid (edges and corners included), at the peak hints
-    /// inside the node, and by a compass search from the best of those, times the safety
-    /// factor (SPEC §3).
-    fn bound(&self, prop: &Proposal, rect: &Rect, seed: (f64, DVec2)) -> f64 {
-        let map = self.config.map;
-        let g = usize::from(self.config.bound_grid);
+    /// The bound search's grid over a node's proposal box ((g + 1)² points, edges and
+    /// corners included, following the node's own region in the angle charts) with the
+    /// height at each: g = the configured `bound_grid` for a flat box, twice it for a shaped
+    /// one (h/S has more local maxima than h: a corner where S is low lifts small heights).
+    pub(crate) fn grid(&self, prop: &Proposal, rect: &Rect) -> Vec<(DVec2, f64)> {
+        let g = self.grid_steps(prop);
         let (lo, hi) = (prop.lo, prop.hi);
         let span = hi - lo;
-        let mut best = [(f64::NEG_INFINITY, lo); 3];
-        let mut consider = |h: f64, q: DVec2| {
-            if h > best[2].0 {
-                best[2] = (h, q);
-                best.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
-            }
-        };
+        let mut points = Vec::with_capacity((g + 1) * (g + 1));
         // The grid follows the node's own region: in the angle chart, t runs between the
         // node's edges at each a (a sliver of the box may hold all of the node).
         for i in 0..=g {
@@ -208,10 +168,142 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
                 // Pull the upper ends in by a hair: the node's upper edges are open.
                 let t = t0 + (t1 - t0) * (j as f64 / g as f64).min(1.0 - 1e-12);
                 let q = DVec2::new(a, t);
-                consider(self.height(prop, rect, q), q);
+                points.push((q, self.height(prop, rect, q)));
             }
         }
-        consider(seed.0, seed.1.clamp(lo, hi));
+        points
+    }
+
+    /// The grid's steps per axis for `prop` (see [`Self::grid`]).
+    pub(crate) fn grid_steps(&self, prop: &Proposal) -> usize {
+        let g = usize::from(self.config.bound_grid);
+        if prop.shape.is_flat() { g } else { 2 * g }
+    }
+
+    /// The heights in the band along the node's stretch of the rim, with their chart points:
+    /// 33 points an arc (or edge), each at the rim probe's heights above the rim
+    /// ([`Self::rim_probe`]) and at five more up to z = 0.03. What a shaped square or polar
+    /// box must bound where f stays bounded at the rim (f·Jacobian: f·½ in the polar chart):
+    /// the grid's rows do not reach into that band, where f may still climb or bend (Schlick's
+    /// Fresnel at grazing wo; Poulin–Fournier's cylinders), and a shape, unlike the flat box,
+    /// may be low there.
+    pub(crate) fn rim_heights(&self, prop: &Proposal, rect: &Rect) -> Vec<(DVec2, f64)> {
+        let map = self.config.map;
+        let jacobian = if prop.chart == Chart::Polar { 0.5 } else { 1.0 };
+        let mut out = Vec::new();
+        for (c, s) in rim_points(map, rect, 33) {
+            for z in [1e-9, 1e-5, 1e-4, 1e-3, 3e-3, 1e-2, 3e-2] {
+                let r = m::sqrt((1.0 - z) * (1.0 + z));
+                let w = DVec3::new(r * c, r * s, z);
+                let q = prop.coordinates(map, w).clamp(prop.lo, prop.hi);
+                out.push((q, self.f(w) * jacobian));
+            }
+        }
+        out
+    }
+
+    /// The largest h/S along the node's stretch of the rim ([`Self::rim_heights`]): what a
+    /// shaped square or polar box must bound where f stays bounded at the rim (the flat box
+    /// takes the probe's largest f instead).
+    fn rim_score(&self, prop: &Proposal, rect: &Rect) -> f64 {
+        self.rim_heights(prop, rect)
+            .into_iter()
+            .map(|(q, h)| h / prop.shape.value(prop.unit(q)))
+            .fold(0.0, f64::max)
+    }
+
+    /// M for `prop` on a node of integral `v1` whose integration met `peak`: the bound
+    /// search ([`Self::bound`]) from the integration's largest height, no less than f's limit
+    /// at the rim where one is given (a shaped box looks at h/S along the rim instead,
+    /// [`Self::rim_score`]) times the safety factor, rounded up to f32.
+    pub(crate) fn proposal_bound(
+        &self,
+        prop: &Proposal,
+        rect: &Rect,
+        peak: &Peak,
+        v1: f64,
+        rim_limit: Option<f64>,
+    ) -> f64 {
+        if prop.chart == Chart::Polar && prop.shape.is_flat() {
+            // The same points as the square's part of the disk, each with height f·½: half
+            // the square's bound (exact in f32) bounds it.
+            let square = Proposal::in_chart(rect, Chart::Square);
+            return 0.5 * self.proposal_bound(&square, rect, peak, v1, rim_limit);
+        }
+        // A bound below the node's mean height is certainly wrong (a peak between the points
+        // looked at): take four times the mean instead, so that P = ¼ splits the node.
+        // (Over a shape, the mean of h/S that would fill the volume: v1 / (area·mean S);
+        // a flat shape's mean is exactly 1.)
+        let mean = if prop.area() > 0.0 {
+            v1 / prop.area() / prop.shape.mean()
+        } else {
+            0.0
+        };
+        // The integration refined itself into every sharp feature of the node: its largest
+        // value (in the proposal's chart) is a bound candidate and a search seed.
+        let seed = match prop.chart {
+            Chart::Square => (peak.f, peak.p),
+            // (Flat polar boxes took the square's bound above; a shaped one looks at the
+            // peak in its own coordinates.)
+            Chart::Polar => {
+                let map = self.config.map;
+                let q = map
+                    .square_to_direction_f64(peak.p)
+                    .map_or(prop.lo, |w| prop.coordinates(map, w));
+                (self.height(prop, rect, q.clamp(prop.lo, prop.hi)), q)
+            }
+            Chart::Angle | Chart::Sine => (peak.fj, peak.q),
+            Chart::AngleY => (peak.fjy, peak.qy),
+        };
+        let mut found = self.bound(prop, rect, seed);
+        if let Some(limit) = rim_limit {
+            let limit = if prop.shape.is_flat() {
+                limit
+            } else {
+                self.rim_score(prop, rect)
+            };
+            found = found.max(limit * self.config.bound_safety);
+        }
+        // (The comparison allows for rounding: a constant f integrates to its value times
+        // the area only up to the rule's last bits, and must not be taken for a missed peak.)
+        let bound = if found >= mean * self.config.bound_safety * (1.0 - 1e-9) {
+            found
+        } else {
+            4.0 * mean
+        };
+        // The sampling layout keeps M in f32: round it up here, so that the tree's E[T] (and
+        // every decision taken on it) is the one sampling will see.
+        f64::from(round_up_f32(bound))
+    }
+
+    /// M: the largest h/S (h for a flat box) found on a dense grid (edges and corners
+    /// included), at the peak hints inside the node, and by a compass search from the best of
+    /// those, times the safety factor (SPEC §3). `seed` is a height and where it was seen.
+    fn bound(&self, prop: &Proposal, rect: &Rect, seed: (f64, DVec2)) -> f64 {
+        let map = self.config.map;
+        let g = self.grid_steps(prop);
+        let (lo, hi) = (prop.lo, prop.hi);
+        let span = hi - lo;
+        let flat = prop.shape.is_flat();
+        let over_shape = |h: f64, q: DVec2| {
+            if flat {
+                h
+            } else {
+                h / prop.shape.value(prop.unit(q))
+            }
+        };
+        let mut best = [(f64::NEG_INFINITY, lo); 3];
+        let mut consider = |h: f64, q: DVec2| {
+            if h > best[2].0 {
+                best[2] = (h, q);
+                best.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+            }
+        };
+        for (q, h) in self.grid(prop, rect) {
+            consider(over_shape(h, q), q);
+        }
+        let seed = (seed.0, seed.1.clamp(lo, hi));
+        consider(over_shape(seed.0, seed.1), seed.1);
         // Peak hints: inside the node, or projected onto its closest point (a lobe peaked just
         // outside is largest on the near edge). A hint inside the node is also climbed from
         // below, whatever its rank: in a chart whose Jacobian vanishes at the rim, a lobe
@@ -231,7 +323,7 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
                 continue;
             };
             let q = prop.coordinates(map, wc).clamp(lo, hi);
-            let h = self.height(prop, rect, q);
+            let h = self.score(prop, rect, q);
             consider(h, q);
             if pc == p && k < inside.len() {
                 inside[k] = Some((h, q));
@@ -267,7 +359,7 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
     /// rim.
     pub(crate) fn rim_probe(&self, rect: &Rect) -> RimProbe {
         let mut limit: f64 = 0.0;
-        for (c, s) in rim_points(self.config.map, rect) {
+        for (c, s) in rim_points(self.config.map, rect, 9) {
             let at = |z: f64| {
                 let r = m::sqrt((1.0 - z) * (1.0 + z));
                 self.f(DVec3::new(r * c, r * s, z))
@@ -283,7 +375,8 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         RimProbe::Bounded(limit)
     }
 
-    /// Hill-climbs h from q0 with axis steps, halving them when no step improves.
+    /// Hill-climbs h/S (h for a flat box) from q0 with axis steps, halving them when no
+    /// step improves.
     fn compass_search(
         &self,
         prop: &Proposal,
@@ -304,7 +397,7 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
                 DVec2::new(0.0, -step.y),
             ] {
                 let c = (q + d).clamp(prop.lo, prop.hi);
-                let hc = self.height(prop, rect, c);
+                let hc = self.score(prop, rect, c);
                 evals += 1;
                 if hc > h {
                     (q, h, moved) = (c, hc, true);

@@ -7,17 +7,18 @@ use crate::bound::RimProbe;
 use crate::chart::{Chart, Rect};
 use crate::config::{BuildConfig, IntegrationRule};
 use crate::integrate::{Cell, Peak, UnitRule, refine_cells};
-use crate::proposal::Proposal;
+use crate::proposal::{Proposal, Shape};
 use alloc::vec::Vec;
 use brdf_core::{Brdf, DiskMap};
 use core::sync::atomic::{AtomicU64, AtomicUsize, Ordering as AtomicOrdering};
-use glam::{DVec3, Vec3};
+use glam::{DVec2, DVec3, Vec3};
 
 /// What a node's evaluation found.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Evaluation {
     pub(crate) v1: f64,
     pub(crate) bound: f64,
+    pub(crate) box_bound: f64,
     pub(crate) proposal: Proposal,
 }
 
@@ -25,7 +26,7 @@ pub(crate) struct Evaluation {
 /// 88 MiB). Past it, a new node keeps only the cells of its children's first rule
 /// application, and past twice it none: the memoised cells only save work (a forgotten one
 /// is recomputed bit for bit), so the tree does not depend on this, and the build's memory
-/// stays below about 2 × 88 MiB plus 72 bytes per node.
+/// stays below about 2 × 88 MiB plus 80 bytes per node.
 pub(crate) const CELL_CACHE_LIMIT: usize = 1 << 20;
 
 /// Parents split per batch of the breadth-first pass (between batches the evaluation budget
@@ -128,6 +129,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             let e = Evaluation {
                 v1: 0.0,
                 bound: 0.0,
+                box_bound: 0.0,
                 proposal: square,
             };
             return (e, None);
@@ -170,7 +172,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         // to the square).
         // (Off the rim the chart proposal is the square itself: nothing to compare.)
         let rim = (chart.chart != Chart::Square).then(|| self.rim_probe(rect));
-        let (proposal, bound) = match rim {
+        let (flat, box_bound) = match rim {
             None | Some(RimProbe::Unbounded) => (chart, chart_bound),
             Some(RimProbe::Bounded(limit)) => {
                 self.spend(search);
@@ -188,12 +190,77 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
                 }
             }
         };
+        // The square (or polar) box of a rim node must also bound f's limit at the rim.
+        let rim_limit = match (rim, flat.chart) {
+            (Some(RimProbe::Bounded(limit)), Chart::Square | Chart::Polar) => Some(limit),
+            _ => None,
+        };
+        let (proposal, bound) = self.shaped(flat, box_bound, rect, &peak, v1, rim_limit);
         let e = Evaluation {
             v1,
             bound,
+            box_bound,
             proposal,
         };
         (e, Some(cell))
+    }
+
+    /// The node's proposal with the height shape that samples it best ([`Shape`]): the flat
+    /// box `flat` of bound `box_bound`, unless the bound search's grid resolves the node (its
+    /// largest height within 0.9 of the flat bound) and a bilinear profile fitted to it
+    /// promises at most 0.9 of the flat volume there, and its own bound search (the same
+    /// grid, hints and compass searches, on h/S; and h/S along the rim where the flat box had
+    /// to bound f's limit there, `rim_limit`) confirms a smaller volume.
+    fn shaped(
+        &self,
+        flat: Proposal,
+        box_bound: f64,
+        rect: &Rect,
+        peak: &Peak,
+        v1: f64,
+        rim_limit: Option<f64>,
+    ) -> (Proposal, f64) {
+        // (Not the angle charts' boxes: a rim node there is a curved sliver of its box, along
+        // which the compass searches, stepping along the box's axes, climb h/S poorly.)
+        if !(box_bound > 0.0 && v1 > 0.0) || matches!(flat.chart, Chart::Angle | Chart::AngleY) {
+            return (flat, box_bound);
+        }
+        // The grid, and where the flat box had to bound f's limit at the rim, the rim: a
+        // rise in its last sliver (Schlick's Fresnel at grazing wo) is the shape's to follow.
+        let mut grid = self.grid(&flat, rect);
+        if rim_limit.is_some() {
+            grid.extend(self.rim_heights(&flat, rect));
+        }
+        let (flat_volume, safety) = (flat.volume(box_bound), self.config.bound_safety);
+        // Only a node the grid resolves: where the flat box's search found a peak well above
+        // every grid point (a lobe between them), a profile fitted to the grid would sink
+        // under it, and its bound would rest on the climbs alone.
+        let grid_top = grid.iter().map(|p| p.1).fold(0.0, f64::max);
+        if grid_top * safety < 0.9 * box_bound {
+            return (flat, box_bound);
+        }
+        let points: Vec<(DVec2, f64)> = grid.iter().map(|&(q, h)| (flat.unit(q), h)).collect();
+        let shape = Shape::fit(&points);
+        if shape.is_flat() {
+            return (flat, box_bound);
+        }
+        let prop = Proposal { shape, ..flat };
+        let on_grid = points
+            .iter()
+            .map(|&(t, h)| h / shape.value(t))
+            .fold(0.0, f64::max);
+        if prop.volume(on_grid * safety) >= 0.9 * flat_volume {
+            return (flat, box_bound);
+        }
+        let g = self.grid_steps(&prop) as u64 + 1;
+        // (The grid, hints and searches; twice the rim band where there is one.)
+        self.spend(g * g + 1300 + if rim_limit.is_some() { 2 * 7 * 66 } else { 0 });
+        let bound = self.proposal_bound(&prop, rect, peak, v1, rim_limit);
+        if prop.volume(bound) < flat_volume {
+            (prop, bound)
+        } else {
+            (flat, box_bound)
+        }
     }
 
     /// Evaluates nodes (in parallel when enabled), each from its inherited cells.

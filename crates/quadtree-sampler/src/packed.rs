@@ -1,14 +1,15 @@
 //! The sampling layout of a quadtree: 16 bytes per node, one cache line holds four (and a
 //! selection guide of at most 4 KiB).
 //!
-//! The build's [`Quadtree`] keeps everything a node's evaluation found, in f64 (72 bytes a
+//! The build's [`Quadtree`] keeps everything a node's evaluation found, in f64 (80 bytes a
 //! node). Sampling needs far less: at an inner node, which child to descend into; at a leaf,
 //! its bound M and which chart its proposal uses. Everything else follows from the path:
 //!
 //! - a node's square is implicit: the root is [−1,1]², child k of a square takes its
 //!   quadrant k ((−,−), (+,−), (−,+), (+,+)), computed exactly in f64 on the way down;
 //! - a leaf's proposal box is a pure function of its square and its chart
-//!   ([`Proposal::in_chart`]): the square itself, or for a rim leaf (the only ones whose box
+//!   ([`Proposal::in_chart`]), with its height shape in the leaf's spare bits
+//!   ([`crate::proposal::Shape`]): the square itself, or for a rim leaf (the only ones whose box
 //!   is not their square) a box in angle or sine coordinates, which costs a handful of
 //!   inverse sines to find — those are found once, when the tree is packed or read, and kept
 //!   beside the nodes (40 bytes per rim leaf), so a sample never recomputes them (the polar
@@ -33,7 +34,7 @@
 
 use crate::bound::round_up_f32 as round_up;
 use crate::chart::{Chart, Rect, child_column, child_row};
-use crate::proposal::Proposal;
+use crate::proposal::{Proposal, Shape};
 use crate::tree::{Node, Quadtree, TreeStats};
 use alloc::vec::Vec;
 use brdf_core::DiskMap;
@@ -45,6 +46,10 @@ const LEAF_FLAG: u32 = 1 << 31;
 const LIVE_FLAG: u32 = 1 << 30;
 /// A leaf's low bits: its chart (0 square, 1 angle, 2 sine, 3 transposed angle, 4 polar).
 const CHART_BITS: u32 = 7;
+/// Where a leaf's height shape starts in its link ([`Shape::to_bits`]: 24 bits, 0 flat).
+const SHAPE_SHIFT: u32 = 3;
+/// The shape's 24 bits, in place.
+const SHAPE_MASK: u32 = ((1 << 24) - 1) << SHAPE_SHIFT;
 /// Fixed-point scale of the selection: probabilities are multiples of 1/`ONE`.
 const ONE: u32 = 1 << 31;
 
@@ -55,7 +60,7 @@ const ONE: u32 = 1 << 31;
 /// (s₁ ≤ s₂ ≤ s₃ ≤ 2³¹; child 0 starts where its parent does, child 3 ends where it ends):
 /// a uniform x ∈ [0, 2³¹) in the node's interval goes to child
 /// k = [x ≥ s₁] + [x ≥ s₂] + [x ≥ s₃]. Leaf: `link` is `LEAF_FLAG` | `LIVE_FLAG` when
-/// v1 > 0 | chart, and `data` holds the bits of M (f32, rounded up, so it still bounds), of
+/// v1 > 0 | the height shape's 24 bits from bit 3 (0: flat) | chart, and `data` holds the bits of M (f32, rounded up, so it still bounds), of
 /// v1 (f32, for inspection only) and, for a rim leaf, its entry in the tree's table of
 /// proposal boxes (0 otherwise; 0 in bake files, where the table is rebuilt on reading).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -91,6 +96,16 @@ impl PackedNode {
     #[must_use]
     pub fn v1(&self) -> Option<f32> {
         self.is_leaf().then(|| f32::from_bits(self.data[1]))
+    }
+
+    /// A leaf's height shape (flat for an inner node; the bits were checked when the node
+    /// was made or read).
+    fn shape(&self) -> Shape {
+        if self.is_leaf() {
+            Shape::from_bits((self.link & SHAPE_MASK) >> SHAPE_SHIFT).unwrap_or(Shape::FLAT)
+        } else {
+            Shape::FLAT
+        }
     }
 
     fn chart(&self) -> Chart {
@@ -210,10 +225,10 @@ pub struct PackedLeaf {
 }
 
 impl PackedLeaf {
-    /// The rejection box's volume: proposal area × M.
+    /// The rejection box's volume: proposal area × M × the shape's mean.
     #[must_use]
     pub fn box_volume(&self) -> f64 {
-        self.proposal.area() * self.bound
+        self.proposal.volume(self.bound)
     }
 
     /// The seed's P = v1 / box volume: the acceptance probability of a trial in this leaf.
@@ -330,8 +345,9 @@ impl PackedTree {
                         Chart::Polar => 4,
                     };
                     let live = if n.v1 > 0.0 { LIVE_FLAG } else { 0 };
+                    let shape = n.proposal.shape.to_bits() << SHAPE_SHIFT;
                     PackedNode {
-                        link: LEAF_FLAG | live | chart,
+                        link: LEAF_FLAG | live | shape | chart,
                         data: [round_up(n.bound).to_bits(), (n.v1 as f32).to_bits(), 0],
                     }
                 } else {
@@ -540,11 +556,12 @@ impl PackedTree {
     pub fn proposal(&self, leaf: &Selected) -> (Proposal, f64) {
         let n = self.nodes[leaf.index];
         let chart = n.chart();
-        let prop = if !chart.needs_stored_box() {
+        let mut prop = if !chart.needs_stored_box() {
             Proposal::in_chart(&leaf.rect, chart)
         } else {
             self.rim[n.data[2] as usize]
         };
+        prop.shape = n.shape();
         (
             prop,
             if n.is_live_leaf() {
@@ -593,8 +610,13 @@ impl PackedTree {
         for (i, w) in raw.iter().enumerate() {
             let link = w[0];
             if link & LEAF_FLAG != 0 {
-                if link & !(LEAF_FLAG | LIVE_FLAG) > 4 {
+                if link & CHART_BITS > 4
+                    || link & !(LEAF_FLAG | LIVE_FLAG | SHAPE_MASK | CHART_BITS) != 0
+                {
                     return Err("a leaf with an unknown chart");
+                }
+                if Shape::from_bits((link & SHAPE_MASK) >> SHAPE_SHIFT).is_none() {
+                    return Err("a leaf with a height shape that has a zero corner");
                 }
                 let chart = link & CHART_BITS;
                 // 0 square, 1 angle, 2 sine, 3 transposed angle, 4 polar.

@@ -37,6 +37,170 @@ fn angle_box(lo: DVec2, hi: DVec2, chart: Chart) -> Proposal {
         chart,
         lo: DVec2::new(a0, tlo),
         hi: DVec2::new(a1, thi),
+        shape: Shape::FLAT,
+    }
+}
+
+/// The largest value [`Shape::warp`] returns on an axis: the box's upper edges are open.
+const BELOW_ONE: f64 = 1.0 - f64::EPSILON / 2.0;
+
+/// How a leaf's height bound varies over its proposal box: a bilinear profile S over the
+/// box's unit coordinates t ∈ [0, 1]², given by its values at the four corners, in the child
+/// order of [`crate::chart::child_index`] ((0,0), (1,0), (0,1), (1,1)). Each corner is a
+/// level 1–63 of 63 (so S ∈ (0, 1], a corner at 1 where the profile is highest, and the
+/// six-bit levels fit the packed leaf's spare bits).
+///
+/// A leaf whose f·Jacobian leans across its box (a lobe's flank, a Fresnel rise toward the
+/// rim, a radial fall-off in the polar box) wastes much of a flat box: its height bound is
+/// the largest value, met in one corner. Under M·S the trials are drawn with density ∝ S
+/// ([`Shape::warp`]) and accepted when a height uniform in [0, M·S(t)) falls below f·J, so
+/// what is accepted is still exactly ∝ f·J, for any S with M·S ≥ f·J; the box's volume
+/// becomes area·M·mean(S) ([`Proposal::volume`]). [`Shape::FLAT`] (every corner 63) is the
+/// seed's flat box.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Shape {
+    levels: [u8; 4],
+}
+
+impl Shape {
+    /// The seed's flat box: S ≡ 1.
+    pub const FLAT: Self = Self { levels: [63; 4] };
+
+    /// A shape from its corner levels (each 1–63, of 63); `None` when one is out of range.
+    #[must_use]
+    pub fn from_levels(levels: [u8; 4]) -> Option<Self> {
+        levels
+            .iter()
+            .all(|l| (1..=63).contains(l))
+            .then_some(Self { levels })
+    }
+
+    /// The corner levels (each 1–63, of 63), in child order.
+    #[must_use]
+    pub fn levels(&self) -> [u8; 4] {
+        self.levels
+    }
+
+    /// Whether this is [`Shape::FLAT`].
+    #[inline]
+    #[must_use]
+    pub fn is_flat(&self) -> bool {
+        self.levels == [63; 4]
+    }
+
+    /// The corner values S(0,0), S(1,0), S(0,1), S(1,1).
+    #[inline]
+    #[must_use]
+    pub fn corners(&self) -> [f64; 4] {
+        self.levels.map(|l| f64::from(l) / 63.0)
+    }
+
+    /// S at box coordinates `t` ∈ [0, 1]² (bilinear between the corners).
+    #[inline]
+    #[must_use]
+    pub fn value(&self, t: DVec2) -> f64 {
+        let [c00, c10, c01, c11] = self.corners();
+        let bottom = c00 + (c10 - c00) * t.x;
+        let top = c01 + (c11 - c01) * t.x;
+        bottom + (top - bottom) * t.y
+    }
+
+    /// The mean of S over the box (the mean of its corners).
+    #[must_use]
+    pub fn mean(&self) -> f64 {
+        self.corners().iter().sum::<f64>() / 4.0
+    }
+
+    /// The smallest value of S over the box (its smallest corner).
+    #[must_use]
+    pub fn min(&self) -> f64 {
+        f64::from(*self.levels.iter().min().unwrap_or(&63)) / 63.0
+    }
+
+    /// Maps a uniform point `u` ∈ [0, 1)² to box coordinates t ∈ [0, 1)² with density
+    /// S(t)/mean(S) (per unit box area): x from S's marginal, linear between the left and
+    /// right edges' sums, then y from its conditional at x, linear between the bottom and top
+    /// values there. Each inverts a linear CDF in the cancellation-free form
+    /// x = u(a + b) / (a + √(a²(1 − u) + b²u)) (a, b the density's ends): one square root
+    /// and one division an axis. The identity for [`Shape::FLAT`].
+    #[inline]
+    #[must_use]
+    pub fn warp(&self, u: DVec2) -> DVec2 {
+        #[inline]
+        fn linear(u: f64, a: f64, b: f64) -> f64 {
+            let x = u * (a + b) / (a + m::sqrt(a * a * (1.0 - u) + b * b * u));
+            x.min(BELOW_ONE)
+        }
+        let [c00, c10, c01, c11] = self.corners();
+        let x = linear(u.x, c00 + c01, c10 + c11);
+        let bottom = c00 + (c10 - c00) * x;
+        let top = c01 + (c11 - c01) * x;
+        DVec2::new(x, linear(u.y, bottom, top))
+    }
+
+    /// The bilinear profile that bounds `points` (box coordinates t and heights h ≥ 0) with
+    /// the least volume this search finds, as levels relative to its highest corner.
+    /// Starting from the flat box at the largest height, each corner in turn is lowered as
+    /// far as the points allow, given the other three (a coordinate descent of the linear
+    /// programme "least mean corner, S(tᵢ) ≥ hᵢ"), with every corner kept at 1/63 of the
+    /// largest height at least. Only the profile matters: the bound search then finds the
+    /// largest h/S over the leaf ([`crate::bound`]), so the shape need not bound the points
+    /// itself after rounding to levels. [`Shape::FLAT`] when no point is positive.
+    #[must_use]
+    pub fn fit(points: &[(DVec2, f64)]) -> Self {
+        let top = points.iter().map(|p| p.1).fold(0.0, f64::max);
+        if !(top > 0.0 && top.is_finite()) {
+            return Self::FLAT;
+        }
+        let floor = top / 63.0;
+        let weights = |t: DVec2| {
+            let (x, y) = (t.x.clamp(0.0, 1.0), t.y.clamp(0.0, 1.0));
+            [(1.0 - x) * (1.0 - y), x * (1.0 - y), (1.0 - x) * y, x * y]
+        };
+        let mut c = [top; 4];
+        for _ in 0..24 {
+            let before = c;
+            for k in 0..4 {
+                let mut need = floor;
+                for &(t, h) in points {
+                    let w = weights(t);
+                    if w[k] > 1e-9 && h > 0.0 {
+                        let rest: f64 = (0..4).filter(|&l| l != k).map(|l| c[l] * w[l]).sum();
+                        need = need.max((h - rest) / w[k]);
+                    }
+                }
+                c[k] = need.min(c[k]);
+            }
+            if c == before {
+                break;
+            }
+        }
+        let high = c.iter().copied().fold(0.0, f64::max);
+        let levels = c.map(|v| (v / high * 63.0).round().clamp(1.0, 63.0) as u8);
+        Self { levels }
+    }
+
+    /// The 24 bits a packed leaf keeps (six a corner, corner 0 lowest); 0 for the flat box.
+    pub(crate) fn to_bits(self) -> u32 {
+        if self.is_flat() {
+            return 0;
+        }
+        self.levels
+            .iter()
+            .enumerate()
+            .fold(0, |bits, (k, &l)| bits | u32::from(l) << (6 * k))
+    }
+
+    /// The shape of [`Shape::to_bits`]; `None` for bits that no shape writes (a level 0 in
+    /// a non-zero word, or bits above the 24).
+    pub(crate) fn from_bits(bits: u32) -> Option<Self> {
+        if bits == 0 {
+            return Some(Self::FLAT);
+        }
+        if bits >> 24 != 0 {
+            return None;
+        }
+        Self::from_levels([0, 1, 2, 3].map(|k| ((bits >> (6 * k)) & 63) as u8))
     }
 }
 
@@ -49,6 +213,9 @@ pub struct Proposal {
     pub lo: DVec2,
     /// Upper corner.
     pub hi: DVec2,
+    /// How the height bound varies over the box: M·S(q) bounds the height at q
+    /// ([`Shape::FLAT`]: the seed's flat box, S ≡ 1).
+    pub shape: Shape,
 }
 
 impl Proposal {
@@ -66,6 +233,7 @@ impl Proposal {
                         chart: Chart::Square,
                         lo: rect.min,
                         hi: rect.max,
+                        shape: Shape::FLAT,
                     };
                 }
                 // The smaller of the two angle boxes (ties to the seed's own chart).
@@ -85,6 +253,7 @@ impl Proposal {
                         chart: Chart::Square,
                         lo: rect.min,
                         hi: rect.max,
+                        shape: Shape::FLAT,
                     };
                 }
                 Self::in_chart(rect, Chart::Sine)
@@ -121,6 +290,7 @@ impl Proposal {
             chart: Chart::Polar,
             lo: DVec2::new(0.0, lo),
             hi: DVec2::new(1.0, hi),
+            shape: Shape::FLAT,
         }
     }
 
@@ -136,6 +306,7 @@ impl Proposal {
                 chart,
                 lo: rect.min,
                 hi: rect.max,
+                shape: Shape::FLAT,
             },
             Chart::Angle => angle_box(rect.min, rect.max, chart),
             Chart::AngleY => {
@@ -148,6 +319,7 @@ impl Proposal {
                     chart,
                     lo: DVec2::new(s(rect.min.x), s(rect.min.y)),
                     hi: DVec2::new(s(rect.max.x), s(rect.max.y)),
+                    shape: Shape::FLAT,
                 }
             }
         }
@@ -158,6 +330,21 @@ impl Proposal {
     pub fn area(&self) -> f64 {
         let d = self.hi - self.lo;
         d.x * d.y
+    }
+
+    /// The volume under the height bound M·S over the box: area × M × the shape's mean
+    /// (area × M for a flat box).
+    #[must_use]
+    pub fn volume(&self, m: f64) -> f64 {
+        self.area() * m * self.shape.mean()
+    }
+
+    /// The box coordinates (each in [0, 1]) of chart point `q`, the argument of
+    /// [`Shape::value`].
+    #[inline]
+    #[must_use]
+    pub fn unit(&self, q: DVec2) -> DVec2 {
+        (q - self.lo) / (self.hi - self.lo)
     }
 
     /// The chart point at box coordinates `q`, or `None` when it falls outside the node or the
@@ -394,5 +581,137 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Pearson's χ² of `counts` (n draws) against cell probabilities, as Wilson–Hilferty's z
+    /// (one-sided: large z rejects).
+    fn chi_square_z(counts: &[u64], probabilities: &[f64], n: u64) -> f64 {
+        let chi: f64 = counts
+            .iter()
+            .zip(probabilities)
+            .map(|(&c, &p)| {
+                let e = p * n as f64;
+                (c as f64 - e).powi(2) / e
+            })
+            .sum();
+        let k = (counts.len() - 1) as f64;
+        ((chi / k).cbrt() - (1.0 - 2.0 / (9.0 * k))) / (2.0 / (9.0 * k)).sqrt()
+    }
+
+    /// Draws 200 000 points through `warp` and histograms them on 8 × 8 cells of the unit
+    /// square; returns the χ² z against `shape`'s density (exact per cell: a bilinear
+    /// function's mean over a cell is its value at the cell's centre).
+    fn warp_z(shape: Shape, warp: impl Fn(DVec2) -> DVec2, seed: u64) -> f64 {
+        use rand_core::{Rng, SeedableRng};
+        let (cells, n) = (8usize, 200_000u64);
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        let mut counts = alloc::vec![0u64; cells * cells];
+        for _ in 0..n {
+            let r = rng.next_u64();
+            let u = DVec2::new((r >> 32) as f64, (r & 0xffff_ffff) as f64) / 4_294_967_296.0;
+            let t = warp(u);
+            assert!(
+                (0.0..1.0).contains(&t.x) && (0.0..1.0).contains(&t.y),
+                "{t:?}"
+            );
+            let (i, j) = ((t.x * 8.0) as usize, (t.y * 8.0) as usize);
+            counts[j * cells + i] += 1;
+        }
+        let probabilities: alloc::vec::Vec<f64> = (0..cells * cells)
+            .map(|k| {
+                let centre = DVec2::new((k % cells) as f64 + 0.5, (k / cells) as f64 + 0.5) / 8.0;
+                shape.value(centre) / shape.mean() / (cells * cells) as f64
+            })
+            .collect();
+        chi_square_z(&counts, &probabilities, n)
+    }
+
+    /// `warp` draws with density S/mean(S), for steep, skewed and gentle shapes and for
+    /// the flat one (χ² on 63 degrees of freedom, one-sided α = 10⁻⁴ per shape: z < 3.72;
+    /// fixed seeds). Negative control: uniform points judged against a leaning shape are
+    /// rejected.
+    #[test]
+    fn the_warp_follows_the_bilinear_density() {
+        let shapes = [
+            [1, 63, 1, 63],
+            [63, 1, 1, 20],
+            [10, 40, 63, 5],
+            [63, 63, 62, 63],
+        ];
+        for (k, levels) in shapes.into_iter().enumerate() {
+            let shape = Shape::from_levels(levels).unwrap();
+            let z = warp_z(shape, |u| shape.warp(u), 11 + k as u64);
+            assert!(z < 3.72, "{levels:?}: z = {z:.2}");
+        }
+        let flat = warp_z(Shape::FLAT, |u| Shape::FLAT.warp(u), 3);
+        assert!(flat < 3.72, "flat: z = {flat:.2}");
+        assert_eq!(
+            Shape::FLAT.warp(DVec2::new(0.25, 0.75)),
+            DVec2::new(0.25, 0.75)
+        );
+        let leaning = Shape::from_levels([20, 63, 20, 63]).unwrap();
+        let wrong = warp_z(leaning, |u| u, 5);
+        assert!(
+            wrong > 10.0,
+            "uniform points pass as leaning: z = {wrong:.2}"
+        );
+    }
+
+    /// Shapes keep their levels through the packed bits; the flat box is the zero word; bits
+    /// no shape writes (a zero level, anything above bit 23) are refused.
+    #[test]
+    fn shape_bits_round_trip() {
+        assert_eq!(Shape::FLAT.to_bits(), 0);
+        assert_eq!(Shape::from_bits(0), Some(Shape::FLAT));
+        for levels in [
+            [1, 2, 3, 4],
+            [63, 1, 63, 1],
+            [40, 63, 17, 9],
+            [63, 63, 63, 62],
+        ] {
+            let s = Shape::from_levels(levels).unwrap();
+            assert_eq!(Shape::from_bits(s.to_bits()), Some(s));
+            assert!(s.to_bits() < 1 << 24);
+        }
+        assert_eq!(Shape::from_levels([0, 5, 5, 5]), None);
+        assert_eq!(Shape::from_levels([64, 5, 5, 5]), None);
+        assert_eq!(Shape::from_bits(5 << 6), None);
+        assert_eq!(Shape::from_bits(Shape::FLAT.to_bits() | 1 << 24), None);
+    }
+
+    /// A height that leans linearly across the box gets a shape that leans with it: its
+    /// levels follow h (1 + 3x: a quarter at x = 0), and the bound over it (the largest h/S)
+    /// leaves under 0.65 of the flat box's volume; a constant or empty height stays flat.
+    #[test]
+    fn the_fit_follows_a_lean() {
+        let grid = |h: &dyn Fn(DVec2) -> f64| {
+            (0..=8)
+                .flat_map(|i| (0..=8).map(move |j| DVec2::new(i as f64, j as f64) / 8.0))
+                .map(|t| (t, h(t)))
+                .collect::<alloc::vec::Vec<_>>()
+        };
+        let lean = grid(&|t| 1.0 + 3.0 * t.x);
+        let shape = Shape::fit(&lean);
+        let [a, b, c, d] = shape.levels();
+        assert!(
+            (15..=17).contains(&a) && (15..=17).contains(&c),
+            "{shape:?}"
+        );
+        assert_eq!((b, d), (63, 63));
+        let m = lean
+            .iter()
+            .map(|&(t, h)| h / shape.value(t))
+            .fold(0.0, f64::max);
+        assert!(
+            m * shape.mean() < 0.65 * 4.0,
+            "volume {} of 4",
+            m * shape.mean()
+        );
+        assert!(
+            lean.iter()
+                .all(|&(t, h)| h <= m * shape.value(t) * (1.0 + 1e-12))
+        );
+        assert!(Shape::fit(&grid(&|_| 2.0)).is_flat());
+        assert!(Shape::fit(&grid(&|_| 0.0)).is_flat());
     }
 }

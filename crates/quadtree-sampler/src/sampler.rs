@@ -82,11 +82,12 @@ pub struct LeafSample {
 }
 
 /// `muestrear` on a packed tree for any f (the quadtree's own model, or a baked sampler's
-/// grid model): a point uniform in the leaf's proposal box, a height uniform in [0, M);
-/// accept when the height is below Y(f)·(chart Jacobian). Returns the accepted chart point,
+/// grid model): a point uniform in the leaf's proposal box, a height uniform in [0, M)
+/// (for a shaped leaf, the point with density ∝ S and the height in [0, M·S) there:
+/// [`crate::proposal::Shape`]); accept when the height is below Y(f)·(chart Jacobian). Returns the accepted chart point,
 /// the f32 direction a caller sees (the point's unit f64 direction, rounded), f there (RGB, evaluated once per trial at exactly
 /// that vector) and the trials; `None` after [`MAX_TRIALS`] or for a leaf that holds
-/// nothing. Every f > M met is counted in `violations`. One 64-bit draw places the point
+/// nothing. Every f > M (M·S) met is counted in `violations`. One 64-bit draw places the point
 /// (32 bits per axis: 2⁻³² of the leaf's side) and one more the height.
 pub(crate) fn rejection_in_leaf<R: Rng + ?Sized>(
     tree: &PackedTree,
@@ -101,12 +102,20 @@ pub(crate) fn rejection_in_leaf<R: Rng + ?Sized>(
         return None;
     }
     let span = prop.hi - prop.lo;
+    let (shape, flat) = (prop.shape, prop.shape.is_flat());
     const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
     for trial in 1..=MAX_TRIALS {
         let r = rng.next_u64();
         let uv = DVec2::new((r >> 32) as f64, (r & 0xffff_ffff) as f64) * TO_UNIT;
-        let q = prop.lo + span * uv;
-        let z = m * uniform_f64(rng);
+        // A shaped leaf draws its point with density ∝ S and its height under M·S there.
+        let (t, top) = if flat {
+            (uv, m)
+        } else {
+            let t = shape.warp(uv);
+            (t, m * shape.value(t))
+        };
+        let q = prop.lo + span * t;
+        let z = top * uniform_f64(rng);
         let Some(c) = prop.point(tree.map(), &leaf.rect, q) else {
             continue;
         };
@@ -115,7 +124,7 @@ pub(crate) fn rejection_in_leaf<R: Rng + ?Sized>(
         let wo = c.w.as_vec3();
         let f = eval(wo);
         let h = f64::from(luminance(f)) * c.jacobian;
-        if h > m {
+        if h > top {
             violations.fetch_add(1, Ordering::Relaxed);
         }
         if z < h {

@@ -35,8 +35,12 @@ pub struct Node {
     pub first_child: u32,
     /// v1: ∫ f_r over the square (f64). For an inner node, the sum of its children's.
     pub v1: f64,
-    /// M: the height bound of the rejection test in this node's proposal chart.
+    /// M: the height bound of the rejection test in this node's proposal chart, over the
+    /// proposal's shape (f·Jacobian ≤ M·S there; S ≡ 1 for a flat box).
     pub bound: f64,
+    /// M of the flat box in the same chart (the seed's P judges the node by it; equal to
+    /// `bound` when the proposal is flat).
+    pub box_bound: f64,
     /// The rejection proposal of this node (used when it is a leaf).
     pub proposal: Proposal,
 }
@@ -55,10 +59,11 @@ impl Node {
         self.first_child == LEAF
     }
 
-    /// The volume of the rejection box: proposal area × M (s²·M for the seed's square chart).
+    /// The volume of the rejection box: proposal area × M × the shape's mean (s²·M for the
+    /// seed's flat square).
     #[must_use]
     pub fn box_volume(&self) -> f64 {
-        self.proposal.area() * self.bound
+        self.proposal.volume(self.bound)
     }
 
     /// The wasted volume that splitting can remove: box/safety − v1 (the safety factor's
@@ -75,17 +80,17 @@ impl Node {
         if b > 0.0 { self.v1 / b } else { 0.0 }
     }
 
-    /// The box volume the seed's splitting rule judges the node by: [`Node::box_volume`],
-    /// except that a polar box counts as the square it stands in for (the same points, twice
-    /// its bound: [`Chart::Polar`]). The polar box changes how the root and its children
-    /// are sampled, not which nodes the rule splits, so a tree keeps the shape — and the warp
-    /// its proxy — it has with the square; target mode, which asks for an E\[T\], counts
-    /// the box sampling uses.
+    /// The box volume the seed's splitting rule judges the node by: the flat box's (area ×
+    /// `box_bound`), except that a polar box counts as the square it stands in for (the same
+    /// points, twice its bound: [`Chart::Polar`]). A height shape or the polar box changes
+    /// how a leaf is sampled, not which nodes the rule splits, so a tree keeps the shape —
+    /// and the warp its proxy — it has with the flat square; target mode, which asks for an
+    /// E\[T\], counts the volume sampling uses.
     fn seed_box_volume(&self) -> f64 {
         if self.proposal.chart == Chart::Polar {
-            self.rect().area() * 2.0 * self.bound
+            self.rect().area() * 2.0 * self.box_bound
         } else {
-            self.box_volume()
+            self.proposal.area() * self.box_bound
         }
     }
 }
@@ -209,6 +214,7 @@ impl Quadtree {
                 first_child: LEAF,
                 v1: e.v1,
                 bound: e.bound,
+                box_bound: e.box_bound,
                 proposal: e.proposal
             }],
             map: cfg.map,
@@ -330,6 +336,7 @@ impl Quadtree {
                 first_child: LEAF,
                 v1: e.v1,
                 bound: e.bound,
+                box_bound: e.box_bound,
                 proposal: e.proposal,
             });
         }
@@ -501,9 +508,9 @@ mod tests {
     use super::*;
 
     /// The arena's node: the dyadic cell (8 bytes) instead of f32 corners and side (12)
-    /// keeps it at 72 bytes (what `TreeStats::bytes` reports per node).
+    /// keeps it at 80 bytes (what `TreeStats::bytes` reports per node).
     #[test]
-    fn a_build_node_is_72_bytes() {
-        assert_eq!(core::mem::size_of::<Node>(), 72);
+    fn a_build_node_is_80_bytes() {
+        assert_eq!(core::mem::size_of::<Node>(), 80);
     }
 }
