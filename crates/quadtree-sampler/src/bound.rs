@@ -138,7 +138,8 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
     /// The bound search's grid over a node's proposal box ((g + 1)² points, edges and
     /// corners included, following the node's own region in the angle charts) with the
     /// height at each: g = the configured `bound_grid` for a flat box, twice it for a shaped
-    /// one (h/S has more local maxima than h: a corner where S is low lifts small heights).
+    /// one, whose best point alone is then climbed (h/S has more local maxima than h: a corner
+    /// where S is low lifts small heights).
     pub(crate) fn grid(&self, prop: &Proposal, rect: &Rect) -> Vec<(DVec2, f64)> {
         let g = self.grid_steps(prop);
         let (lo, hi) = (prop.lo, prop.hi);
@@ -339,11 +340,16 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
             }
         };
         let par = self.par_levels > 0;
-        let (h0, (h1, h2)) = join(
-            par,
-            || climb(best[0]),
-            || join(par, || climb(best[1]), || climb(best[2])),
-        );
+        // (A shaped box's grid is twice as fine: its best point alone is climbed.)
+        let (h0, (h1, h2)) = if flat {
+            join(
+                par,
+                || climb(best[0]),
+                || join(par, || climb(best[1]), || climb(best[2])),
+            )
+        } else {
+            (climb(best[0]), (0.0, 0.0))
+        };
         let from_hints = inside
             .iter()
             .flatten()

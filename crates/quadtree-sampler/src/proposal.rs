@@ -144,7 +144,7 @@ impl Shape {
     /// far as the points allow, given the other three (a coordinate descent of the linear
     /// programme "least mean corner, S(tᵢ) ≥ hᵢ"), with every corner kept at 1/63 of the
     /// largest height at least. Only the profile matters: the bound search then finds the
-    /// largest h/S over the leaf ([`crate::bound`]), so the shape need not bound the points
+    /// largest h/S over the leaf (the build's bound search), so the shape need not bound the points
     /// itself after rounding to levels. [`Shape::FLAT`] when no point is positive.
     #[must_use]
     pub fn fit(points: &[(DVec2, f64)]) -> Self {
@@ -176,7 +176,8 @@ impl Shape {
             }
         }
         let high = c.iter().copied().fold(0.0, f64::max);
-        let levels = c.map(|v| (v / high * 63.0).round().clamp(1.0, 63.0) as u8);
+        // (Rounded to the nearest level: + ½, then truncated; every value is positive.)
+        let levels = c.map(|v| (v / high * 63.0 + 0.5).clamp(1.0, 63.0) as u8);
         Self { levels }
     }
 
