@@ -106,6 +106,17 @@ pub(crate) fn round_up_f32(m: f64) -> f32 {
     if f64::from(b) < m { b.next_up() } else { b }
 }
 
+/// What a node's bound search may borrow from the searches before it
+/// ([`Context::proposal_bound`]).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Known<'a> {
+    /// The flat box's grid, whose heights a shaped box's finer grid shares.
+    pub(crate) coarse: Option<&'a [(DVec2, f64)]>,
+    /// The heights in the band along the rim ([`Context::rim_heights`]), which a shaped
+    /// square or polar box with a rim limit must bound.
+    pub(crate) rim_band: &'a [(DVec2, f64)],
+}
+
 /// What [`Context::rim_probe`] found: f's behaviour approaching the rim inside a node.
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum RimProbe {
@@ -140,10 +151,22 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
     /// height at each: g = the configured `bound_grid` for a flat box, twice it for a shaped
     /// one, whose best point alone is then climbed (h/S has more local maxima than h: a corner
     /// where S is low lifts small heights).
-    pub(crate) fn grid(&self, prop: &Proposal, rect: &Rect) -> Vec<(DVec2, f64)> {
+    ///
+    /// `coarse`, the grid of the same box at half the steps (the flat box's, for a shaped
+    /// one), lends its heights to the points they share: the same coordinates, bit for bit
+    /// (j/g and 2j/2g round alike), so nothing is evaluated twice. Only a full grid (no
+    /// column skipped) is borrowed from.
+    pub(crate) fn grid(
+        &self,
+        prop: &Proposal,
+        rect: &Rect,
+        coarse: Option<&[(DVec2, f64)]>,
+    ) -> Vec<(DVec2, f64)> {
         let g = self.grid_steps(prop);
         let (lo, hi) = (prop.lo, prop.hi);
         let span = hi - lo;
+        let half = g / 2;
+        let coarse = coarse.filter(|c| g.is_multiple_of(2) && c.len() == (half + 1) * (half + 1));
         let mut points = Vec::with_capacity((g + 1) * (g + 1));
         // The grid follows the node's own region: in the angle chart, t runs between the
         // node's edges at each a (a sliver of the box may hold all of the node).
@@ -169,10 +192,33 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
                 // Pull the upper ends in by a hair: the node's upper edges are open.
                 let t = t0 + (t1 - t0) * (j as f64 / g as f64).min(1.0 - 1e-12);
                 let q = DVec2::new(a, t);
-                points.push((q, self.height(prop, rect, q)));
+                let known = coarse
+                    .filter(|_| i % 2 == 0 && j % 2 == 0)
+                    .map(|c| c[(i / 2) * (half + 1) + j / 2])
+                    .filter(|&(p, _)| p == q);
+                // (NaN marks a height still to evaluate.)
+                points.push((q, known.map_or(f64::NAN, |k| k.1)));
             }
         }
+        self.fill_heights(prop, rect, &mut points);
         points
+    }
+
+    /// Evaluates the height of every point whose height is NaN, in halves side by side when
+    /// the build is parallel (the same values in any order).
+    fn fill_heights(&self, prop: &Proposal, rect: &Rect, points: &mut [(DVec2, f64)]) {
+        if points.len() <= 32 || self.par_levels == 0 {
+            for p in points.iter_mut().filter(|p| p.1.is_nan()) {
+                p.1 = self.height(prop, rect, p.0);
+            }
+            return;
+        }
+        let (a, b) = points.split_at_mut(points.len() / 2);
+        join(
+            true,
+            || self.fill_heights(prop, rect, a),
+            || self.fill_heights(prop, rect, b),
+        );
     }
 
     /// The grid's steps per axis for `prop` (see [`Self::grid`]).
@@ -191,32 +237,51 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
     pub(crate) fn rim_heights(&self, prop: &Proposal, rect: &Rect) -> Vec<(DVec2, f64)> {
         let map = self.config.map;
         let jacobian = if prop.chart == Chart::Polar { 0.5 } else { 1.0 };
-        let mut out = Vec::new();
+        let mut at = Vec::new();
         for (c, s) in rim_points(map, rect, 33) {
             for z in [1e-9, 1e-5, 1e-4, 1e-3, 3e-3, 1e-2, 3e-2] {
                 let r = m::sqrt((1.0 - z) * (1.0 + z));
-                let w = DVec3::new(r * c, r * s, z);
-                let q = prop.coordinates(map, w).clamp(prop.lo, prop.hi);
-                out.push((q, self.f(w) * jacobian));
+                at.push((DVec3::new(r * c, r * s, z), f64::NAN));
             }
         }
-        out
+        self.fill_f(&mut at);
+        at.into_iter()
+            .map(|(w, f)| {
+                (
+                    prop.coordinates(map, w).clamp(prop.lo, prop.hi),
+                    f * jacobian,
+                )
+            })
+            .collect()
     }
 
-    /// The largest h/S along the node's stretch of the rim ([`Self::rim_heights`]): what a
-    /// shaped square or polar box must bound where f stays bounded at the rim (the flat box
+    /// f at every direction of `at`, in halves side by side when the build is parallel.
+    fn fill_f(&self, at: &mut [(DVec3, f64)]) {
+        if at.len() <= 32 || self.par_levels == 0 {
+            for p in at.iter_mut() {
+                p.1 = self.f(p.0);
+            }
+            return;
+        }
+        let (a, b) = at.split_at_mut(at.len() / 2);
+        join(true, || self.fill_f(a), || self.fill_f(b));
+    }
+
+    /// The largest h/S in the band along the node's stretch of the rim (`rim`: what
+    /// [`Self::rim_heights`] found for the box's chart): what a shaped square or polar box
+    /// must bound where f stays bounded at the rim (the flat box
     /// takes the probe's largest f instead).
-    fn rim_score(&self, prop: &Proposal, rect: &Rect) -> f64 {
-        self.rim_heights(prop, rect)
-            .into_iter()
-            .map(|(q, h)| h / prop.shape.value(prop.unit(q)))
+    fn rim_score(&self, prop: &Proposal, rim: &[(DVec2, f64)]) -> f64 {
+        rim.iter()
+            .map(|&(q, h)| h / prop.shape.value(prop.unit(q)))
             .fold(0.0, f64::max)
     }
 
     /// M for `prop` on a node of integral `v1` whose integration met `peak`: the bound
     /// search ([`Self::bound`]) from the integration's largest height, no less than f's limit
-    /// at the rim where one is given (a shaped box looks at h/S along the rim instead,
-    /// [`Self::rim_score`]) times the safety factor, rounded up to f32.
+    /// at the rim where one is given (a shaped box looks at h/S in `known`'s rim band instead,
+    /// [`Self::rim_score`]) times the safety factor, rounded up to f32. `known`'s coarse grid
+    /// lends its heights to the grid ([`Self::grid`]), which is returned with M.
     pub(crate) fn proposal_bound(
         &self,
         prop: &Proposal,
@@ -224,12 +289,16 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         peak: &Peak,
         v1: f64,
         rim_limit: Option<f64>,
-    ) -> f64 {
+        known: Known<'_>,
+    ) -> (f64, Vec<(DVec2, f64)>) {
+        let Known { coarse, rim_band } = known;
         if prop.chart == Chart::Polar && prop.shape.is_flat() {
             // The same points as the square's part of the disk, each with height f·½: half
-            // the square's bound (exact in f32) bounds it.
+            // the square's bound (exact in f32) bounds it. (Its grid is the square's: none
+            // of the polar box's own is returned.)
             let square = Proposal::in_chart(rect, Chart::Square);
-            return 0.5 * self.proposal_bound(&square, rect, peak, v1, rim_limit);
+            let (m, _) = self.proposal_bound(&square, rect, peak, v1, rim_limit, Known::default());
+            return (0.5 * m, Vec::new());
         }
         // A bound below the node's mean height is certainly wrong (a peak between the points
         // looked at): take four times the mean instead, so that P = ¼ splits the node.
@@ -256,12 +325,12 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
             Chart::Angle | Chart::Sine => (peak.fj, peak.q),
             Chart::AngleY => (peak.fjy, peak.qy),
         };
-        let mut found = self.bound(prop, rect, seed);
+        let (mut found, grid) = self.bound(prop, rect, seed, coarse);
         if let Some(limit) = rim_limit {
             let limit = if prop.shape.is_flat() {
                 limit
             } else {
-                self.rim_score(prop, rect)
+                self.rim_score(prop, rim_band)
             };
             found = found.max(limit * self.config.bound_safety);
         }
@@ -274,13 +343,20 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         };
         // The sampling layout keeps M in f32: round it up here, so that the tree's E[T] (and
         // every decision taken on it) is the one sampling will see.
-        f64::from(round_up_f32(bound))
+        (f64::from(round_up_f32(bound)), grid)
     }
 
     /// M: the largest h/S (h for a flat box) found on a dense grid (edges and corners
     /// included), at the peak hints inside the node, and by a compass search from the best of
-    /// those, times the safety factor (SPEC §3). `seed` is a height and where it was seen.
-    fn bound(&self, prop: &Proposal, rect: &Rect, seed: (f64, DVec2)) -> f64 {
+    /// those, times the safety factor (SPEC §3). `seed` is a height and where it was seen;
+    /// `coarse` lends heights to the grid ([`Self::grid`]), which is returned with M.
+    fn bound(
+        &self,
+        prop: &Proposal,
+        rect: &Rect,
+        seed: (f64, DVec2),
+        coarse: Option<&[(DVec2, f64)]>,
+    ) -> (f64, Vec<(DVec2, f64)>) {
         let map = self.config.map;
         let g = self.grid_steps(prop);
         let (lo, hi) = (prop.lo, prop.hi);
@@ -300,7 +376,8 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
                 best.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
             }
         };
-        for (q, h) in self.grid(prop, rect) {
+        let grid = self.grid(prop, rect, coarse);
+        for &(q, h) in &grid {
             consider(over_shape(h, q), q);
         }
         let seed = (seed.0, seed.1.clamp(lo, hi));
@@ -340,22 +417,27 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
             }
         };
         let par = self.par_levels > 0;
+        // The climbs from the hints, beside those from the grid's best points (the largest
+        // of them all is the same in any order).
+        let hints = || {
+            inside
+                .iter()
+                .flatten()
+                .map(|&x| climb(x))
+                .fold(0.0, f64::max)
+        };
         // (A shaped box's grid is twice as fine: its best point alone is climbed.)
-        let (h0, (h1, h2)) = if flat {
+        let ((h0, from_hints), (h1, h2)) = if flat {
             join(
                 par,
-                || climb(best[0]),
+                || join(par, || climb(best[0]), hints),
                 || join(par, || climb(best[1]), || climb(best[2])),
             )
         } else {
-            (climb(best[0]), (0.0, 0.0))
+            (join(par, || climb(best[0]), hints), (0.0, 0.0))
         };
-        let from_hints = inside
-            .iter()
-            .flatten()
-            .map(|&x| climb(x))
-            .fold(0.0, f64::max);
-        best[0].0.max(0.0).max(h0).max(h1).max(h2).max(from_hints) * self.config.bound_safety
+        let m = best[0].0.max(0.0).max(h0).max(h1).max(h2).max(from_hints);
+        (m * self.config.bound_safety, grid)
     }
 
     /// Looks at f along the node's own stretch of the rim ([`rim_points`]: its arcs of the

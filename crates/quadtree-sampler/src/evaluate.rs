@@ -3,7 +3,7 @@
 //! ([`crate::bound`]), and the build's budgets (evaluations, remembered cells). Pure
 //! functions of a node's square and inherited cells, so levels evaluate in parallel.
 
-use crate::bound::RimProbe;
+use crate::bound::{Known, RimProbe};
 use crate::chart::{Chart, Rect};
 use crate::config::{BuildConfig, IntegrationRule};
 use crate::integrate::{Cell, Peak, UnitRule, refine_cells};
@@ -161,7 +161,8 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         let depth = u32::from(self.config.integration_depth);
         let search = g * g + 1200;
         self.spend((1 + cell.applications(tol, depth)) * self.per_application + search);
-        let chart_bound = self.proposal_bound(&chart, rect, &peak, v1, None);
+        let (chart_bound, chart_grid) =
+            self.proposal_bound(&chart, rect, &peak, v1, None, Known::default());
         // A rim node is sampled in the proposal with the smaller box it can bound. The angle
         // and sine charts bound f·Jacobian even where f is unbounded at the rim (Ward's 1/√z),
         // but their Jacobians vanish there, so their boxes waste about half of a rim node
@@ -172,21 +173,22 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         // to the square).
         // (Off the rim the chart proposal is the square itself: nothing to compare.)
         let rim = (chart.chart != Chart::Square).then(|| self.rim_probe(rect));
-        let (flat, box_bound) = match rim {
-            None | Some(RimProbe::Unbounded) => (chart, chart_bound),
+        let (flat, box_bound, flat_grid) = match rim {
+            None | Some(RimProbe::Unbounded) => (chart, chart_bound, chart_grid),
             Some(RimProbe::Bounded(limit)) => {
                 self.spend(search);
-                let square_bound = self.proposal_bound(&square, rect, &peak, v1, Some(limit));
+                let (square_bound, square_grid) =
+                    self.proposal_bound(&square, rect, &peak, v1, Some(limit), Known::default());
                 // The root and its children (orthographic) take the polar box in the
                 // square's place: the same points, f·½, π/4 of the square's volume.
-                let (square, square_bound) = match Proposal::polar(map, rect) {
-                    Some(polar) => (polar, 0.5 * square_bound),
-                    None => (square, square_bound),
+                let (square, square_bound, square_grid) = match Proposal::polar(map, rect) {
+                    Some(polar) => (polar, 0.5 * square_bound, Vec::new()),
+                    None => (square, square_bound, square_grid),
                 };
                 if square.area() * square_bound <= chart.area() * chart_bound {
-                    (square, square_bound)
+                    (square, square_bound, square_grid)
                 } else {
-                    (chart, chart_bound)
+                    (chart, chart_bound, chart_grid)
                 }
             }
         };
@@ -195,7 +197,8 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             (Some(RimProbe::Bounded(limit)), Chart::Square | Chart::Polar) => Some(limit),
             _ => None,
         };
-        let (proposal, bound) = self.shaped(flat, box_bound, rect, &peak, v1, rim_limit);
+        let (proposal, bound) =
+            self.shaped((flat, box_bound, flat_grid), rect, &peak, v1, rim_limit);
         let e = Evaluation {
             v1,
             bound,
@@ -206,31 +209,42 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
     }
 
     /// The node's proposal with the height shape that samples it best ([`Shape`]): the flat
-    /// box `flat` of bound `box_bound`, unless the bound search's grid resolves the node (its
+    /// box `flat` of bound `box_bound` (whose search evaluated `flat_grid`), unless the bound search's grid resolves the node (its
     /// largest height within 0.9 of the flat bound) and a bilinear profile fitted to it
     /// promises at most 0.9 of the flat volume there, and its own bound search (a grid twice
     /// as fine, the hints and a compass search, on h/S; and h/S along the rim where the flat
     /// box had to bound f's limit there, `rim_limit`) confirms a smaller volume.
     fn shaped(
         &self,
-        flat: Proposal,
-        box_bound: f64,
+        (flat, box_bound, flat_grid): (Proposal, f64, Vec<(DVec2, f64)>),
         rect: &Rect,
         peak: &Peak,
         v1: f64,
         rim_limit: Option<f64>,
     ) -> (Proposal, f64) {
-        // (Not the angle charts' boxes: a rim node there is a curved sliver of its box, along
-        // which the compass searches, stepping along the box's axes, climb h/S poorly.)
-        if !(box_bound > 0.0 && v1 > 0.0) || matches!(flat.chart, Chart::Angle | Chart::AngleY) {
+        // Only the square and polar boxes. The rim charts (angle, sine) are chosen where f
+        // grows without bound at the rim or climbs steeply just short of it, and their
+        // Jacobians vanish there: f·J rises from 0 like a square root, which a linear profile
+        // through the grid's rows undercuts between the rim and the first row. (An angle box
+        // is also a curved sliver, along which axis-stepping climbs follow h/S poorly.)
+        if !(box_bound > 0.0 && v1 > 0.0 && matches!(flat.chart, Chart::Square | Chart::Polar)) {
             return (flat, box_bound);
         }
         // The grid, and where the flat box had to bound f's limit at the rim, the rim: a
         // rise in its last sliver (Schlick's Fresnel at grazing wo) is the shape's to follow.
-        let mut grid = self.grid(&flat, rect);
-        if rim_limit.is_some() {
-            grid.extend(self.rim_heights(&flat, rect));
-        }
+        // (The flat box's own search already evaluated its grid, except the polar box's.)
+        let mut grid = if flat_grid.is_empty() {
+            self.grid(&flat, rect, None)
+        } else {
+            flat_grid
+        };
+        let coarse_len = grid.len();
+        let rim_band = if rim_limit.is_some() {
+            self.rim_heights(&flat, rect)
+        } else {
+            Vec::new()
+        };
+        grid.extend_from_slice(&rim_band);
         let (flat_volume, safety) = (flat.volume(box_bound), self.config.bound_safety);
         // Only a node the grid resolves: where the flat box's search found a peak well above
         // every grid point (a lobe between them), a profile fitted to the grid would sink
@@ -253,9 +267,13 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             return (flat, box_bound);
         }
         let g = self.grid_steps(&prop) as u64 + 1;
-        // (The grid, hints and searches; twice the rim band where there is one.)
-        self.spend(g * g + 1300 + if rim_limit.is_some() { 2 * 7 * 66 } else { 0 });
-        let bound = self.proposal_bound(&prop, rect, peak, v1, rim_limit);
+        // (The grid, hints and searches; the rim band where there is one.)
+        self.spend(g * g + 1300 + if rim_limit.is_some() { 7 * 66 } else { 0 });
+        let known = Known {
+            coarse: Some(&grid[..coarse_len]),
+            rim_band: &rim_band,
+        };
+        let (bound, _) = self.proposal_bound(&prop, rect, peak, v1, rim_limit, known);
         if prop.volume(bound) < flat_volume {
             (prop, bound)
         } else {

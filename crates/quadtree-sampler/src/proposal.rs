@@ -153,25 +153,36 @@ impl Shape {
             return Self::FLAT;
         }
         let floor = top / 63.0;
-        let weights = |t: DVec2| {
-            let (x, y) = (t.x.clamp(0.0, 1.0), t.y.clamp(0.0, 1.0));
-            [(1.0 - x) * (1.0 - y), x * (1.0 - y), (1.0 - x) * y, x * y]
-        };
+        // Each positive point's corner weights, once.
+        let weighted: alloc::vec::Vec<([f64; 4], f64)> = points
+            .iter()
+            .filter(|p| p.1 > 0.0)
+            .map(|&(t, h)| {
+                let (x, y) = (t.x.clamp(0.0, 1.0), t.y.clamp(0.0, 1.0));
+                (
+                    [(1.0 - x) * (1.0 - y), x * (1.0 - y), (1.0 - x) * y, x * y],
+                    h,
+                )
+            })
+            .collect();
         let mut c = [top; 4];
+        // Levels are 1/63 apart: sweeps stop once no corner moves by a thousandth of the top.
         for _ in 0..24 {
-            let before = c;
+            let mut moved: f64 = 0.0;
             for k in 0..4 {
                 let mut need = floor;
-                for &(t, h) in points {
-                    let w = weights(t);
-                    if w[k] > 1e-9 && h > 0.0 {
-                        let rest: f64 = (0..4).filter(|&l| l != k).map(|l| c[l] * w[l]).sum();
+                for (w, h) in &weighted {
+                    if w[k] > 1e-9 {
+                        let all = c[0] * w[0] + c[1] * w[1] + c[2] * w[2] + c[3] * w[3];
+                        let rest = all - c[k] * w[k];
                         need = need.max((h - rest) / w[k]);
                     }
                 }
-                c[k] = need.min(c[k]);
+                let lowered = need.min(c[k]);
+                moved = moved.max(c[k] - lowered);
+                c[k] = lowered;
             }
-            if c == before {
+            if moved <= 1e-3 * top {
                 break;
             }
         }
