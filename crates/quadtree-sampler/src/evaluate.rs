@@ -209,8 +209,8 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
     }
 
     /// The node's proposal with the height shape that samples it best ([`Shape`]): the flat
-    /// box `flat` of bound `box_bound` (whose search evaluated `flat_grid`), unless the bound search's grid resolves the node (its
-    /// largest height within 0.9 of the flat bound) and a bilinear profile fitted to it
+    /// box `flat` of bound `box_bound` (whose search evaluated `flat_grid`), unless the
+    /// bound search's grid resolves the node (its largest height within 0.9 of the flat bound) and a bilinear profile fitted to it
     /// promises at most 0.9 of the flat volume there, and its own bound search (a grid twice
     /// as fine, the hints and a compass search, on h/S; and h/S along the rim where the flat
     /// box had to bound f's limit there, `rim_limit`) confirms a smaller volume.

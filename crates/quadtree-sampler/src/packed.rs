@@ -60,7 +60,8 @@ const ONE: u32 = 1 << 31;
 /// (s₁ ≤ s₂ ≤ s₃ ≤ 2³¹; child 0 starts where its parent does, child 3 ends where it ends):
 /// a uniform x ∈ [0, 2³¹) in the node's interval goes to child
 /// k = [x ≥ s₁] + [x ≥ s₂] + [x ≥ s₃]. Leaf: `link` is `LEAF_FLAG` | `LIVE_FLAG` when
-/// v1 > 0 | the height shape's 24 bits from bit 3 (0: flat) | chart, and `data` holds the bits of M (f32, rounded up, so it still bounds), of
+/// v1 > 0 | the height shape's 24 bits from bit 3 (0: flat) | chart, and `data` holds the
+/// bits of M (f32, rounded up, so it still bounds), of
 /// v1 (f32, for inspection only) and, for a rim leaf, its entry in the tree's table of
 /// proposal boxes (0 otherwise; 0 in bake files, where the table is rebuilt on reading).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

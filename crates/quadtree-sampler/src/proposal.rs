@@ -111,12 +111,6 @@ impl Shape {
         self.corners().iter().sum::<f64>() / 4.0
     }
 
-    /// The smallest value of S over the box (its smallest corner).
-    #[must_use]
-    pub fn min(&self) -> f64 {
-        f64::from(*self.levels.iter().min().unwrap_or(&63)) / 63.0
-    }
-
     /// Maps a uniform point `u` ∈ [0, 1)² to box coordinates t ∈ [0, 1)² with density
     /// S(t)/mean(S) (per unit box area): x from S's marginal, linear between the left and
     /// right edges' sums, then y from its conditional at x, linear between the bottom and top

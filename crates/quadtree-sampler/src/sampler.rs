@@ -84,7 +84,8 @@ pub struct LeafSample {
 /// `muestrear` on a packed tree for any f (the quadtree's own model, or a baked sampler's
 /// grid model): a point uniform in the leaf's proposal box, a height uniform in [0, M)
 /// (for a shaped leaf, the point with density ∝ S and the height in [0, M·S) there:
-/// [`crate::proposal::Shape`]); accept when the height is below Y(f)·(chart Jacobian). Returns the accepted chart point,
+/// [`crate::proposal::Shape`]); accept when the height is below Y(f)·(chart Jacobian).
+/// Returns the accepted chart point,
 /// the f32 direction a caller sees (the point's unit f64 direction, rounded), f there (RGB, evaluated once per trial at exactly
 /// that vector) and the trials; `None` after [`MAX_TRIALS`] or for a leaf that holds
 /// nothing. Every f > M (M·S) met is counted in `violations`. One 64-bit draw places the point
