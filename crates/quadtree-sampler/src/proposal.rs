@@ -53,7 +53,7 @@ const BELOW_ONE: f64 = 1.0 - f64::EPSILON / 2.0;
 /// A leaf whose f·Jacobian leans across its box (a lobe's flank, a Fresnel rise toward the
 /// rim, a radial fall-off in the polar box) wastes much of a flat box: its height bound is
 /// the largest value, met in one corner. Under M·S the trials are drawn with density ∝ S
-/// ([`Shape::warp`]) and accepted when a height uniform in [0, M·S(t)) falls below f·J, so
+/// ([`Shape::draw`]) and accepted when a height uniform in [0, M·S(t)) falls below f·J, so
 /// what is accepted is still exactly ∝ f·J, for any S with M·S ≥ f·J; the box's volume
 /// becomes area·M·mean(S) ([`Proposal::volume`]). [`Shape::FLAT`] (every corner 63) is the
 /// seed's flat box.
@@ -130,6 +130,30 @@ impl Shape {
         let bottom = c00 + (c10 - c00) * x;
         let top = c01 + (c11 - c01) * x;
         DVec2::new(x, linear(u.y, bottom, top))
+    }
+
+    /// Draws box coordinates t ∈ [0, 1)² with density S(t)/mean(S), as [`Shape::warp`] does,
+    /// without its square roots and divisions (two of each, in sequence): `pick` chooses a
+    /// corner k with probability level_k / Σ levels, and `xy` (two 64-bit words: four 32-bit
+    /// uniforms) places t under that corner's tensor-product hat 4·w_k(t) — on each axis the
+    /// larger of two uniforms (density 2x) toward the corner's high side, the smaller
+    /// (2(1 − x)) toward its low side. The hats weighted by the levels sum to S/mean(S)
+    /// exactly; the corner choice rounds `pick` to the levels' integer sum, so its
+    /// probabilities are off by at most 2⁻³² each. The rejection trials use this one.
+    #[inline]
+    #[must_use]
+    pub fn draw(&self, xy: [u64; 2], pick: u32) -> DVec2 {
+        const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
+        let [l0, l1, l2, l3] = self.levels.map(u64::from);
+        let point = (u64::from(pick) * (l0 + l1 + l2 + l3)) >> 32;
+        let k = usize::from(point >= l0)
+            + usize::from(point >= l0 + l1)
+            + usize::from(point >= l0 + l1 + l2);
+        let pair = |r: u64, high: bool| {
+            let (a, b) = ((r >> 32) as u32, r as u32);
+            f64::from(if high { a.max(b) } else { a.min(b) }) * TO_UNIT
+        };
+        DVec2::new(pair(xy[0], k & 1 == 1), pair(xy[1], k >> 1 == 1))
     }
 
     /// The bilinear profile that bounds `points` (box coordinates t and heights h ≥ 0) with
@@ -413,6 +437,7 @@ impl Proposal {
 mod tests {
     use super::*;
     use crate::chart::tests::nodes;
+    use rand_core::Rng;
 
     /// At the angle chart's poles (±1, 0) its box keeps a t-range of π/2 however small the
     /// node; the chosen proposal must shrink with the node (area ~ s^{3/2}), at all four
@@ -608,14 +633,28 @@ mod tests {
     /// square; returns the χ² z against `shape`'s density (exact per cell: a bilinear
     /// function's mean over a cell is its value at the cell's centre).
     fn warp_z(shape: Shape, warp: impl Fn(DVec2) -> DVec2, seed: u64) -> f64 {
-        use rand_core::{Rng, SeedableRng};
+        draws_z(
+            shape,
+            |rng| {
+                let r = rng.next_u64();
+                warp(DVec2::new((r >> 32) as f64, (r & 0xffff_ffff) as f64) / 4_294_967_296.0)
+            },
+            seed,
+        )
+    }
+
+    /// [`warp_z`] for any draw from the RNG.
+    fn draws_z(
+        shape: Shape,
+        mut draw: impl FnMut(&mut rand_pcg::Pcg64) -> DVec2,
+        seed: u64,
+    ) -> f64 {
+        use rand_core::SeedableRng;
         let (cells, n) = (8usize, 200_000u64);
         let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
         let mut counts = alloc::vec![0u64; cells * cells];
         for _ in 0..n {
-            let r = rng.next_u64();
-            let u = DVec2::new((r >> 32) as f64, (r & 0xffff_ffff) as f64) / 4_294_967_296.0;
-            let t = warp(u);
+            let t = draw(&mut rng);
             assert!(
                 (0.0..1.0).contains(&t.x) && (0.0..1.0).contains(&t.y),
                 "{t:?}"
@@ -632,10 +671,10 @@ mod tests {
         chi_square_z(&counts, &probabilities, n)
     }
 
-    /// `warp` draws with density S/mean(S), for steep, skewed and gentle shapes and for
-    /// the flat one (χ² on 63 degrees of freedom, one-sided α = 10⁻⁴ per shape: z < 3.72;
-    /// fixed seeds). Negative control: uniform points judged against a leaning shape are
-    /// rejected.
+    /// `warp` and `draw` draw with density S/mean(S), for steep, skewed and gentle shapes,
+    /// and `warp` for the flat one (χ² on 63 degrees of freedom, one-sided α = 10⁻⁴ per
+    /// draw: z < 3.72; fixed seeds). Negative control: uniform points judged against a
+    /// leaning shape are rejected.
     #[test]
     fn the_warp_follows_the_bilinear_density() {
         let shapes = [
@@ -655,6 +694,15 @@ mod tests {
             Shape::FLAT.warp(DVec2::new(0.25, 0.75)),
             DVec2::new(0.25, 0.75)
         );
+        // The rejection trials' draw, the same density without square roots.
+        for (k, levels) in shapes.into_iter().enumerate() {
+            let shape = Shape::from_levels(levels).unwrap();
+            let draw = |rng: &mut rand_pcg::Pcg64| {
+                shape.draw([rng.next_u64(), rng.next_u64()], rng.next_u32())
+            };
+            let z = draws_z(shape, draw, 21 + k as u64);
+            assert!(z < 3.72, "draw {levels:?}: z = {z:.2}");
+        }
         let leaning = Shape::from_levels([20, 63, 20, 63]).unwrap();
         let wrong = warp_z(leaning, |u| u, 5);
         assert!(

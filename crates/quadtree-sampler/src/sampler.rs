@@ -107,12 +107,12 @@ pub(crate) fn rejection_in_leaf<R: Rng + ?Sized>(
     const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
     for trial in 1..=MAX_TRIALS {
         let r = rng.next_u64();
-        let uv = DVec2::new((r >> 32) as f64, (r & 0xffff_ffff) as f64) * TO_UNIT;
         // A shaped leaf draws its point with density ∝ S and its height under M·S there.
         let (t, top) = if flat {
+            let uv = DVec2::new((r >> 32) as f64, (r & 0xffff_ffff) as f64) * TO_UNIT;
             (uv, m)
         } else {
-            let t = shape.warp(uv);
+            let t = shape.draw([r, rng.next_u64()], rng.next_u32());
             (t, m * shape.value(t))
         };
         let q = prop.lo + span * t;
