@@ -22,6 +22,14 @@ pub(crate) struct Evaluation {
     pub(crate) proposal: Proposal,
 }
 
+/// A node tries a height shape's own bound search only where the fitted profile promises
+/// at most this fraction of the flat box's volume. At 0.9, a one-leaf tree whose f leans
+/// gently (Oren–Nayar at θ = 45°, concentric, whose promise lies between the two) kept its
+/// flat box and E[T] 1.27, and target mode split it into five nodes for 1.14; at 0.97 it
+/// keeps one leaf at E[T] 1.17. The searches this adds cost little: in the 88-case table (11 models, both
+/// maps, θ = 0, 45, 80, 89°) no build time moved beyond run-to-run noise.
+pub(crate) const SHAPE_PROMISE: f64 = 0.97;
+
 /// Integration cells the build may remember for the nodes still to split (88 bytes each:
 /// 88 MiB). Past it, a new node keeps only the cells of its children's first rule
 /// application, and past twice it none: the memoised cells only save work (a forgotten one
@@ -210,10 +218,11 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
 
     /// The node's proposal with the height shape that samples it best ([`Shape`]): the flat
     /// box `flat` of bound `box_bound` (whose search evaluated `flat_grid`), unless the
-    /// bound search's grid resolves the node (its largest height within 0.9 of the flat bound) and a bilinear profile fitted to it
-    /// promises at most 0.9 of the flat volume there, and its own bound search (a grid twice
-    /// as fine, the hints and a compass search, on h/S; and h/S along the rim where the flat
-    /// box had to bound f's limit there, `rim_limit`) confirms a smaller volume.
+    /// bound search's grid resolves the node (its largest height within 0.9 of the flat
+    /// bound) and a bilinear profile fitted to it promises at most [`SHAPE_PROMISE`] of the
+    /// flat volume there, and its own bound search (a grid twice as fine, the hints and a
+    /// compass search, on h/S; and h/S along the rim where the flat box had to bound f's
+    /// limit there, `rim_limit`) confirms a smaller volume.
     fn shaped(
         &self,
         (flat, box_bound, flat_grid): (Proposal, f64, Vec<(DVec2, f64)>),
@@ -263,7 +272,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             .iter()
             .map(|&(t, h)| h / shape.value(t))
             .fold(0.0, f64::max);
-        if prop.volume(on_grid * safety) >= 0.9 * flat_volume {
+        if prop.volume(on_grid * safety) >= SHAPE_PROMISE * flat_volume {
             return (flat, box_bound);
         }
         let g = self.grid_steps(&prop) as u64 + 1;
