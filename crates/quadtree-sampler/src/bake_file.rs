@@ -37,9 +37,10 @@ pub const BAKE_MAGIC: [u8; 8] = *b"BRDFBAKE";
 /// transposed angle chart, and the models evaluate with the grazing floor
 /// (`brdf_core::geometry::GRAZING_COS`). Version 3: the root and its children may use the
 /// polar chart (orthographic trees). Version 4: leaves may carry a height shape
-/// ([`crate::proposal::Shape`], in bits 3–26 of a leaf's link word). Files of earlier
-/// versions must be baked again.
-pub const BAKE_FORMAT_VERSION: u32 = 4;
+/// ([`crate::proposal::Shape`], in bits 3–26 of a leaf's link word). Version 5: the root
+/// and its children may use the polar chart on concentric trees too. A file of any other
+/// version is a typed error (SPEC §7): bake it again.
+pub const BAKE_FORMAT_VERSION: u32 = 5;
 
 const HEADER: usize = 8 + 4 + 8;
 const TRAILER: usize = 4;

@@ -230,13 +230,18 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
     /// The heights in the band along the node's stretch of the rim, with their chart points:
     /// 33 points an arc (or edge), each at the rim probe's heights above the rim
     /// ([`Self::rim_probe`]) and at five more up to z = 0.03. What a shaped square or polar
-    /// box must bound where f stays bounded at the rim (f·Jacobian: f·½ in the polar chart):
+    /// box must bound where f stays bounded at the rim (f·Jacobian: f times the polar chart's
+    /// constant, [`crate::chart::polar_jacobian`]):
     /// the grid's rows do not reach into that band, where f may still climb or bend (Schlick's
     /// Fresnel at grazing wo; Poulin–Fournier's cylinders), and a shape, unlike the flat box,
     /// may be low there.
     pub(crate) fn rim_heights(&self, prop: &Proposal, rect: &Rect) -> Vec<(DVec2, f64)> {
         let map = self.config.map;
-        let jacobian = if prop.chart == Chart::Polar { 0.5 } else { 1.0 };
+        let jacobian = if prop.chart == Chart::Polar {
+            crate::chart::polar_jacobian(map)
+        } else {
+            1.0
+        };
         let mut at = Vec::new();
         for (c, s) in rim_points(map, rect, 33) {
             for z in [1e-9, 1e-5, 1e-4, 1e-3, 3e-3, 1e-2, 3e-2] {
@@ -293,12 +298,12 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
     ) -> (f64, Vec<(DVec2, f64)>) {
         let Known { coarse, rim_band } = known;
         if prop.chart == Chart::Polar && prop.shape.is_flat() {
-            // The same points as the square's part of the disk, each with height f·½: half
-            // the square's bound (exact in f32) bounds it. (Its grid is the square's: none
-            // of the polar box's own is returned.)
+            // The same points as the square's part of the disk, each with height f times the
+            // chart's constant Jacobian: the square's bound times it bounds them. (Its grid is
+            // the square's: none of the polar box's own is returned.)
             let square = Proposal::in_chart(rect, Chart::Square);
             let (m, _) = self.proposal_bound(&square, rect, peak, v1, rim_limit, Known::default());
-            return (0.5 * m, Vec::new());
+            return (crate::evaluate::polar_bound(self.config.map, m), Vec::new());
         }
         // A bound below the node's mean height is certainly wrong (a peak between the points
         // looked at): take four times the mean instead, so that P = ¼ splits the node.

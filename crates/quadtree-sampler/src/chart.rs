@@ -27,10 +27,12 @@
 //! ([`crate::proposal::Proposal::for_node`]), which bounds f·Jacobian even where f grows without bound at the
 //! rim; where f stays bounded the square is bounded too, and the build keeps whichever box
 //! has the smaller volume (usually the square: the charts' Jacobians vanish at the rim).
-//! On the orthographic map the root and its four children, whose parts of the disk are the
-//! whole disk and its quarters, take the square's place with a polar box ([`Chart::Polar`]):
-//! the same points and f·½, without the square's corners outside the disk (a constant f_r
-//! is one leaf with E\[T\] = the safety factor, not 4/π times it).
+//! The root and its four children, whose parts of the disk are the whole disk and its
+//! quarters, may take the square's place with a polar box ([`Chart::Polar`]): the same
+//! points with f times a constant Jacobian. On the orthographic map it leaves out the
+//! square's corners outside the disk (a constant f_r is one leaf with E\[T\] = the safety
+//! factor, not 4/π times it); on both maps a height shape over (s, φ) follows a radial
+//! profile (Schlick's Fresnel rise at normal incidence).
 
 use brdf_core::math as m;
 use glam::{DVec2, DVec3};
@@ -171,11 +173,14 @@ pub enum Chart {
     AngleY,
     /// Concentric sine coordinates (α, β), for leaves that touch the square's edge.
     Sine,
-    /// Orthographic polar coordinates (s, φ): x = √s·cos φ, y = √s·sin φ, z = √(1 − s),
-    /// Jacobian ½ everywhere ([`polar_point`]). Its boxes cover a node's part of the disk
-    /// exactly, without the square's corners outside it, only where that part is a sector
-    /// through the centre: the root (the whole disk) and its four children (quarter disks).
-    /// There f·½ is bounded wherever f is, and the box's volume is π/4 of the square's.
+    /// Polar coordinates (s, φ) of the disk: x = √s·cos φ, y = √s·sin φ, z = √(1 − s), with
+    /// a constant Jacobian ([`polar_jacobian`]: ½ orthographic, [`polar_point`]; 2/π
+    /// concentric, [`concentric_polar_point`]). Its boxes cover a node's part of the disk
+    /// exactly only where that part is a sector through the centre: the root (the whole
+    /// disk) and its four children (quarter disks), on either map. Orthographic, the box
+    /// leaves out the square's corners outside the disk (its volume is π/4 of the square's
+    /// for a flat bound); on both maps, a height shape over (s, φ) follows a radial profile,
+    /// which a bilinear shape over the concentric square, whose rings are squares, cannot.
     Polar,
 }
 
@@ -253,6 +258,54 @@ pub fn polar_point(s: f64, phi: f64) -> ChartPoint {
         p,
         w: DVec3::new(p.x, p.y, m::sqrt(1.0 - s)),
         jacobian: 0.5,
+    }
+}
+
+/// The polar chart on the concentric map: the same (s, φ) → direction as [`polar_point`],
+/// with the square point the concentric map sends there (from r = √s and φ directly, with no
+/// arc tangent) and Jacobian 2/π: ½ (disk area per unit (s, φ) area) times 4/π (square area
+/// per unit disk area). The square point's quadrant is the direction's (the map keeps the
+/// signs of x and y), so the root's children, quarter disks, are sectors here too.
+#[inline]
+#[must_use]
+pub fn concentric_polar_point(s: f64, phi: f64) -> ChartPoint {
+    use core::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+    let s = s.clamp(0.0, 1.0);
+    let r = m::sqrt(s);
+    let (sp, cp) = m::sin_cos(phi);
+    // The inverse of the concentric map at (r, φ), φ taken to [−π/4, 7π/4): four wedges,
+    // in each of which one coordinate is ±r and the other linear in φ.
+    let phi = if phi < -FRAC_PI_4 {
+        phi + 2.0 * PI
+    } else {
+        phi
+    };
+    let k = r / FRAC_PI_4;
+    let p = if phi < FRAC_PI_4 {
+        DVec2::new(r, k * phi)
+    } else if phi < 3.0 * FRAC_PI_4 {
+        DVec2::new(-k * (phi - FRAC_PI_2), r)
+    } else if phi < 5.0 * FRAC_PI_4 {
+        DVec2::new(-r, -k * (phi - PI))
+    } else {
+        DVec2::new(k * (phi - 3.0 * FRAC_PI_2), -r)
+    };
+    ChartPoint {
+        p,
+        w: DVec3::new(r * cp, r * sp, m::sqrt(1.0 - s)),
+        jacobian: core::f64::consts::FRAC_2_PI,
+    }
+}
+
+/// The polar chart's constant Jacobian on `map` (square area per unit (s, φ) area): ½ on
+/// the orthographic map ([`polar_point`]), 2/π on the concentric one
+/// ([`concentric_polar_point`]). A square box's height f becomes f times this in a polar box.
+#[inline]
+#[must_use]
+pub fn polar_jacobian(map: brdf_core::DiskMap) -> f64 {
+    match map {
+        brdf_core::DiskMap::Orthographic => 0.5,
+        brdf_core::DiskMap::Concentric => core::f64::consts::FRAC_2_PI,
     }
 }
 

@@ -30,6 +30,15 @@ pub(crate) struct Evaluation {
 /// maps, θ = 0, 45, 80, 89°) no build time moved beyond run-to-run noise.
 pub(crate) const SHAPE_PROMISE: f64 = 0.97;
 
+/// The flat polar box's bound from the square's bound `square` of the same node: the same
+/// points with f times the chart's constant Jacobian ([`crate::chart::polar_jacobian`]),
+/// rounded up to f32 (orthographic, ½: exact).
+pub(crate) fn polar_bound(map: DiskMap, square: f64) -> f64 {
+    f64::from(crate::bound::round_up_f32(
+        crate::chart::polar_jacobian(map) * square,
+    ))
+}
+
 /// Integration cells the build may remember for the nodes still to split (88 bytes each:
 /// 88 MiB). Past it, a new node keeps only the cells of its children's first rule
 /// application, and past twice it none: the memoised cells only save work (a forgotten one
@@ -189,8 +198,9 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
                     self.proposal_bound(&square, rect, &peak, v1, Some(limit), Known::default());
                 // The root and its children (orthographic) take the polar box in the
                 // square's place: the same points, f·½, π/4 of the square's volume.
-                let (square, square_bound, square_grid) = match Proposal::polar(map, rect) {
-                    Some(polar) => (polar, 0.5 * square_bound, Vec::new()),
+                let polar = Proposal::polar(rect).filter(|_| map == DiskMap::Orthographic);
+                let (square, square_bound, square_grid) = match polar {
+                    Some(polar) => (polar, polar_bound(map, square_bound), Vec::new()),
                     None => (square, square_bound, square_grid),
                 };
                 if square.area() * square_bound <= chart.area() * chart_bound {
@@ -205,8 +215,23 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             (Some(RimProbe::Bounded(limit)), Chart::Square | Chart::Polar) => Some(limit),
             _ => None,
         };
-        let (proposal, bound) =
+        let (mut proposal, mut bound) =
             self.shaped((flat, box_bound, flat_grid), rect, &peak, v1, rim_limit);
+        let mut box_bound = box_bound;
+        // On the concentric map the polar box of the root or a child has the square's flat
+        // volume (both cover the node's part of the disk exactly), but a shape over it follows
+        // a radial profile, which one over the square cannot (the map's rings are squares);
+        // a lean across the square goes the other way. Both are shaped; the smaller is kept
+        // (ties to the square).
+        if let (DiskMap::Concentric, Chart::Square, Some(polar)) =
+            (map, flat.chart, Proposal::polar(rect))
+        {
+            let polar_box = polar_bound(map, box_bound);
+            let (p, b) = self.shaped((polar, polar_box, Vec::new()), rect, &peak, v1, rim_limit);
+            if p.volume(b) < proposal.volume(bound) {
+                (proposal, bound, box_bound) = (p, b, polar_box);
+            }
+        }
         let e = Evaluation {
             v1,
             bound,

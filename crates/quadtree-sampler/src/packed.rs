@@ -623,7 +623,7 @@ impl PackedTree {
                 // 0 square, 1 angle, 2 sine, 3 transposed angle, 4 polar.
                 let fits = match map {
                     DiskMap::Orthographic => chart != 2,
-                    DiskMap::Concentric => chart == 0 || chart == 2,
+                    DiskMap::Concentric => matches!(chart, 0 | 2 | 4),
                 };
                 if !fits {
                     return Err("a leaf whose chart does not belong to the tree's map");
@@ -714,7 +714,8 @@ mod tests {
     }
 
     /// A constant f_r on the orthographic map is one leaf sampled in the polar chart; its
-    /// layout reads back, and the same leaf marked polar below the root's children (which no
+    /// layout reads back (on either map), a chart of the other map is refused, and the same
+    /// leaf marked polar below the root's children (which no
     /// build makes: only the root and its children are sectors of the disk), or with a chart
     /// code past the polar one, is refused.
     #[test]
@@ -730,7 +731,21 @@ mod tests {
             PackedTree::from_raw(raw, DiskMap::Orthographic, packed.volume, false)
         };
         assert_eq!(read(&raw).unwrap().nodes, packed.nodes);
-        assert!(PackedTree::from_raw(&raw, DiskMap::Concentric, packed.volume, false).is_err());
+        // Polar leaves belong to both maps (the concentric root's is a sector too); the
+        // angle chart only to the orthographic one, the sine chart only to the concentric.
+        assert!(PackedTree::from_raw(&raw, DiskMap::Concentric, packed.volume, false).is_ok());
+        for (code, map) in [(1, DiskMap::Concentric), (2, DiskMap::Orthographic)] {
+            let other = [[
+                (raw[0][0] & !CHART_BITS) | code,
+                raw[0][1],
+                raw[0][2],
+                raw[0][3],
+            ]];
+            assert_eq!(
+                PackedTree::from_raw(&other, map, packed.volume, false).err(),
+                Some("a leaf whose chart does not belong to the tree's map")
+            );
+        }
         let mut bad = raw.clone();
         bad[0][0] = (bad[0][0] & !CHART_BITS) | 5;
         assert_eq!(read(&bad).err(), Some("a leaf with an unknown chart"));

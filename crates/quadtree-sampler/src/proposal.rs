@@ -2,8 +2,8 @@
 //! on the disk's rim, the smallest box of an angle or sine chart (see [`crate::chart`]).
 
 use crate::chart::{
-    Chart, ChartPoint, Rect, angle_point, angle_point_y, angle_y_coordinates, polar_point,
-    sine_point,
+    Chart, ChartPoint, Rect, angle_point, angle_point_y, angle_y_coordinates,
+    concentric_polar_point, polar_point, sine_point,
 };
 use brdf_core::DiskMap;
 use brdf_core::math as m;
@@ -157,13 +157,14 @@ impl Shape {
     }
 
     /// The bilinear profile that bounds `points` (box coordinates t and heights h ≥ 0) with
-    /// the least volume this search finds, as levels relative to its highest corner.
-    /// Starting from the flat box at the largest height, each corner in turn is lowered as
-    /// far as the points allow, given the other three (a coordinate descent of the linear
-    /// programme "least mean corner, S(tᵢ) ≥ hᵢ"), with every corner kept at 1/63 of the
-    /// largest height at least. Only the profile matters: the bound search then finds the
-    /// largest h/S over the leaf (the build's bound search), so the shape need not bound the points
-    /// itself after rounding to levels. [`Shape::FLAT`] when no point is positive.
+    /// the least volume, as levels relative to its highest corner: the solution of the
+    /// linear programme "least mean corner, S(tᵢ) ≥ hᵢ, every corner at least 1/63 of the
+    /// largest height" (a simplex on its four-row dual, exact up to rounding), or where
+    /// that fails to converge, a coordinate descent from the flat box (each corner in turn
+    /// lowered as far as the points allow given the other three). Only the profile matters:
+    /// the build's bound search then finds the largest h/S over the leaf, so the shape need
+    /// not bound the points itself after rounding to levels. [`Shape::FLAT`] when no point
+    /// is positive.
     #[must_use]
     pub fn fit(points: &[(DVec2, f64)]) -> Self {
         let top = points.iter().map(|p| p.1).fold(0.0, f64::max);
@@ -183,27 +184,7 @@ impl Shape {
                 )
             })
             .collect();
-        let mut c = [top; 4];
-        // Levels are 1/63 apart: sweeps stop once no corner moves by a thousandth of the top.
-        for _ in 0..24 {
-            let mut moved: f64 = 0.0;
-            for k in 0..4 {
-                let mut need = floor;
-                for (w, h) in &weighted {
-                    if w[k] > 1e-9 {
-                        let all = c[0] * w[0] + c[1] * w[1] + c[2] * w[2] + c[3] * w[3];
-                        let rest = all - c[k] * w[k];
-                        need = need.max((h - rest) / w[k]);
-                    }
-                }
-                let lowered = need.min(c[k]);
-                moved = moved.max(c[k] - lowered);
-                c[k] = lowered;
-            }
-            if moved <= 1e-3 * top {
-                break;
-            }
-        }
+        let c = least_corners(&weighted, floor).unwrap_or_else(|| descend(&weighted, top, floor));
         let high = c.iter().copied().fold(0.0, f64::max);
         // (Rounded to the nearest level: + ½, then truncated; every value is positive.)
         let levels = c.map(|v| (v / high * 63.0 + 0.5).clamp(1.0, 63.0) as u8);
@@ -291,17 +272,17 @@ impl Proposal {
         }
     }
 
-    /// The polar box of an orthographic node whose part of the disk is a sector through the
-    /// centre ([`Chart::Polar`]): s ∈ [0, 1] and φ over the whole turn for the root, over its
-    /// quadrant for a child of the root; `None` for any other node. (Squares are dyadic, so
-    /// these comparisons are exact.)
+    /// The polar box of a node whose part of the disk is a sector through the centre
+    /// ([`Chart::Polar`], on either map): s ∈ [0, 1] and φ over the whole turn for the root,
+    /// over its quadrant for a child of the root; `None` for any other node. (Squares are
+    /// dyadic, so these comparisons are exact.)
     #[must_use]
-    pub fn polar(map: DiskMap, rect: &Rect) -> Option<Self> {
+    pub fn polar(rect: &Rect) -> Option<Self> {
         let corner = |v: f64| v == -1.0 || v == 0.0;
         let side = rect.max.x - rect.min.x;
         let sector = (side == 2.0 && rect.min == DVec2::NEG_ONE)
             || (side == 1.0 && corner(rect.min.x) && corner(rect.min.y));
-        (map == DiskMap::Orthographic && sector).then(|| Self::polar_box(rect))
+        sector.then(|| Self::polar_box(rect))
     }
 
     /// The polar box of the root or one of its children (see [`Proposal::polar`]).
@@ -400,7 +381,10 @@ impl Proposal {
             Chart::Polar => {
                 // The box's φ-range is the node's quadrant (or the whole turn): only rounding
                 // on its edges can carry a point out of the node.
-                let c = polar_point(q.x, q.y);
+                let c = match map {
+                    DiskMap::Orthographic => polar_point(q.x, q.y),
+                    DiskMap::Concentric => concentric_polar_point(q.x, q.y),
+                };
                 rect.contains_half_open(c.p).then_some(c)
             }
         }
@@ -431,6 +415,127 @@ impl Proposal {
             }
         }
     }
+}
+
+/// The corners c of the bilinear profile Σₖ wₖ(tᵢ)·cₖ with the least sum that bounds every
+/// weighted point (`weighted`: corner weights, summing to 1, and height h), each corner at
+/// least `floor`: the linear programme min Σc, W·c ≥ h, c ≥ floor. With c = floor + x it is
+/// min Σx, W·x ≥ g (g = h − floor; points at or below the floor bind nothing), x ≥ 0, whose
+/// dual max g·y, Wᵀ·y ≤ 1, y ≥ 0 has four rows: the primal simplex on the dual keeps a 4 × 4
+/// basis (slacks first), enters the column of largest reduced cost gᵢ − π·wᵢ, and stops when
+/// none is positive; the dual prices π are then the optimal x. A coordinate descent (the
+/// fallback, [`descend`]) stops at the first corner that cannot move alone, where a point
+/// near one corner pins two; the simplex moves corners together. `None` where it does not
+/// converge in 64 pivots (degenerate cycling) or meets a singular basis.
+fn least_corners(weighted: &[([f64; 4], f64)], floor: f64) -> Option<[f64; 4]> {
+    let cols: alloc::vec::Vec<([f64; 4], f64)> = weighted
+        .iter()
+        .filter(|(_, h)| *h > floor)
+        .map(|&(w, h)| (w, h - floor))
+        .collect();
+    // Basis: column indices, `usize::MAX - k` for slack k.
+    let slack = |k: usize| usize::MAX - k;
+    let mut basis = [slack(0), slack(1), slack(2), slack(3)];
+    let column = |j: usize| -> ([f64; 4], f64) {
+        if j >= usize::MAX - 3 {
+            let mut e = [0.0; 4];
+            e[usize::MAX - j] = 1.0;
+            (e, 0.0)
+        } else {
+            cols[j]
+        }
+    };
+    let scale = cols.iter().map(|c| c.1).fold(0.0, f64::max);
+    for _ in 0..64 {
+        // B⁻¹ by Gauss–Jordan on [B | I] (B's columns are the basic columns).
+        let mut a = [[0.0f64; 8]; 4];
+        for (k, &j) in basis.iter().enumerate() {
+            let (w, _) = column(j);
+            for r in 0..4 {
+                a[r][k] = w[r];
+            }
+            a[k][4 + k] = 1.0;
+        }
+        for col in 0..4 {
+            let pivot = (col..4).max_by(|&p, &q| a[p][col].abs().total_cmp(&a[q][col].abs()))?;
+            if a[pivot][col].abs() < 1e-12 {
+                return None;
+            }
+            a.swap(col, pivot);
+            let d = a[col][col];
+            for v in &mut a[col] {
+                *v /= d;
+            }
+            let pivot_row = a[col];
+            for (r, row) in a.iter_mut().enumerate() {
+                let f = row[col];
+                if r != col && f != 0.0 {
+                    for (v, p) in row.iter_mut().zip(pivot_row) {
+                        *v -= f * p;
+                    }
+                }
+            }
+        }
+        let inv = |r: usize, c: usize| a[r][4 + c];
+        // Prices π = c_Bᵀ·B⁻¹ and basic values β = B⁻¹·1.
+        let cost: [f64; 4] = basis.map(|j| column(j).1);
+        let pi: [f64; 4] = core::array::from_fn(|c| (0..4).map(|r| cost[r] * inv(r, c)).sum());
+        let beta: [f64; 4] = core::array::from_fn(|r| (0..4).map(|c| inv(r, c)).sum());
+        // Entering: the largest reduced cost (a slack's is −πₖ).
+        let mut best = (1e-12 * scale.max(f64::MIN_POSITIVE), None);
+        for (k, &p) in pi.iter().enumerate() {
+            if -p > best.0 {
+                best = (-p, Some(slack(k)));
+            }
+        }
+        for (j, (w, g)) in cols.iter().enumerate() {
+            let reduced = g - (pi[0] * w[0] + pi[1] * w[1] + pi[2] * w[2] + pi[3] * w[3]);
+            if reduced > best.0 {
+                best = (reduced, Some(j));
+            }
+        }
+        let Some(enter) = best.1 else {
+            return pi
+                .iter()
+                .all(|x| x.is_finite())
+                .then(|| pi.map(|x| floor + x.max(0.0)));
+        };
+        // Leaving: the ratio test on d = B⁻¹·a.
+        let (w, _) = column(enter);
+        let d: [f64; 4] = core::array::from_fn(|r| (0..4).map(|c| inv(r, c) * w[c]).sum());
+        let leave = (0..4)
+            .filter(|&r| d[r] > 1e-12)
+            .min_by(|&p, &q| (beta[p] / d[p]).total_cmp(&(beta[q] / d[q])))?;
+        basis[leave] = enter;
+    }
+    None
+}
+
+/// The coordinate descent behind [`Shape::fit`] where [`least_corners`] fails: from the
+/// flat box at `top`, each corner in turn lowered as far as the points allow given the
+/// other three (never below `floor`), until no corner moves by a thousandth of the top.
+fn descend(weighted: &[([f64; 4], f64)], top: f64, floor: f64) -> [f64; 4] {
+    let mut c = [top; 4];
+    for _ in 0..24 {
+        let mut moved: f64 = 0.0;
+        for k in 0..4 {
+            let mut need = floor;
+            for (w, h) in weighted {
+                if w[k] > 1e-9 {
+                    let all = c[0] * w[0] + c[1] * w[1] + c[2] * w[2] + c[3] * w[3];
+                    let rest = all - c[k] * w[k];
+                    need = need.max((h - rest) / w[k]);
+                }
+            }
+            let lowered = need.min(c[k]);
+            moved = moved.max(c[k] - lowered);
+            c[k] = lowered;
+        }
+        if moved <= 1e-3 * top {
+            break;
+        }
+    }
+    c
 }
 
 #[cfg(test)]
@@ -537,59 +642,70 @@ mod tests {
     }
 
     /// The polar boxes of the root and of its four children hold exactly their parts of the
-    /// disk: box area × Jacobian ½ is that part's area (π, π/4), every point of the part maps
-    /// into the box and back, and every box point maps into its node (or is refused).
+    /// disk, on both maps: box area × ½ is that part's area (π, π/4) and the Jacobian is the
+    /// map's (½, 2/π); every point of the part maps into the box and back; every box point
+    /// maps into its node (or is refused), to the square point the map sends to its
+    /// direction.
     #[test]
     fn polar_boxes_are_their_nodes_parts_of_the_disk() {
         let root = Rect::square(-1.0, -1.0, 2.0);
         let mut rects = alloc::vec![root];
         rects.extend(root.quadrants());
-        let map = DiskMap::Orthographic;
-        for r in rects {
-            let prop = Proposal::polar(map, &r).expect("the root and its children are sectors");
-            let part = if r == root { PI } else { PI / 4.0 };
-            assert!((prop.area() * 0.5 - part).abs() < 1e-15, "{r:?}: {prop:?}");
-            for i in 0..=16 {
-                for j in 0..=16 {
-                    let q = prop.lo
-                        + (prop.hi - prop.lo) * DVec2::new(f64::from(i), f64::from(j)) / 16.0;
-                    let Some(c) = prop.point(map, &r, q) else {
-                        // Only on the box's edges: the centre (s = 0), the rim (s = 1) and
-                        // the node's own upper edges (half-open squares).
-                        assert!(i == 0 || i == 16 || j == 0 || j == 16, "{r:?}: {q} refused");
-                        continue;
-                    };
-                    assert!(r.contains_half_open(c.p) && (c.w.length() - 1.0).abs() < 1e-15);
-                    assert_eq!(c.jacobian, 0.5);
-                    if i > 0 && i < 16 && j > 0 && j < 16 {
-                        let back = prop.coordinates(map, c.w);
-                        assert!((back - q).length() < 1e-12, "{r:?}: {q} -> {back}");
+        for map in [DiskMap::Orthographic, DiskMap::Concentric] {
+            let jacobian = crate::chart::polar_jacobian(map);
+            for &r in &rects {
+                let prop = Proposal::polar(&r).expect("the root and its children are sectors");
+                let part = if r == root { PI } else { PI / 4.0 };
+                assert!((prop.area() * 0.5 - part).abs() < 1e-15, "{r:?}: {prop:?}");
+                for i in 0..=16 {
+                    for j in 0..=16 {
+                        let q = prop.lo
+                            + (prop.hi - prop.lo) * DVec2::new(f64::from(i), f64::from(j)) / 16.0;
+                        let Some(c) = prop.point(map, &r, q) else {
+                            // Only on the box's edges: the centre (s = 0), the rim (s = 1) and
+                            // the node's own upper edges (half-open squares).
+                            assert!(
+                                i == 0 || i == 16 || j == 0 || j == 16,
+                                "{map:?} {r:?}: {q} refused"
+                            );
+                            continue;
+                        };
+                        assert!(r.contains_half_open(c.p) && (c.w.length() - 1.0).abs() < 1e-15);
+                        assert_eq!(c.jacobian, jacobian);
+                        // (At the rim, s = 1, the rounded r² may not be 1: z is not 0 there,
+                        // or the point falls outside the orthographic disk.)
+                        if i < 16 {
+                            let w = map.square_to_direction_f64(c.p).unwrap();
+                            assert!((w - c.w).length() < 1e-14, "{map:?} {r:?}: {q}: {c:?}");
+                        }
+                        if i > 0 && i < 16 && j > 0 && j < 16 {
+                            let back = prop.coordinates(map, c.w);
+                            assert!((back - q).length() < 1e-12, "{r:?}: {q} -> {back}");
+                        }
                     }
                 }
-            }
-            let mut k = 0u64;
-            for _ in 0..512 {
-                k = k
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                let u = DVec2::new((k >> 40) as f64, ((k >> 16) & 0xff_ffff) as f64)
-                    / f64::from(1u32 << 24);
-                let p = r.min + (r.max - r.min) * u;
-                if p.length_squared() >= 1.0 {
-                    continue;
+                let mut k = 0u64;
+                for _ in 0..512 {
+                    k = k
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    let u = DVec2::new((k >> 40) as f64, ((k >> 16) & 0xff_ffff) as f64)
+                        / f64::from(1u32 << 24);
+                    let p = r.min + (r.max - r.min) * u;
+                    let Some(w) = map.square_to_direction_f64(p) else {
+                        continue;
+                    };
+                    let q = prop.coordinates(map, w);
+                    assert!(
+                        q.cmpge(prop.lo).all() && q.cmple(prop.hi).all(),
+                        "{map:?} {r:?}: {p} -> {q}"
+                    );
                 }
-                let w = DVec3::new(p.x, p.y, m::sqrt(1.0 - p.length_squared()));
-                let q = prop.coordinates(map, w);
-                assert!(
-                    q.cmpge(prop.lo).all() && q.cmple(prop.hi).all(),
-                    "{r:?}: {p} -> {q}"
-                );
             }
         }
-        // No other node is a sector, and the concentric map has no polar chart.
-        assert!(Proposal::polar(map, &Rect::square(-0.5, -0.5, 1.0)).is_none());
-        assert!(Proposal::polar(map, &Rect::square(0.0, 0.0, 0.5)).is_none());
-        assert!(Proposal::polar(DiskMap::Concentric, &root).is_none());
+        // No other node is a sector.
+        assert!(Proposal::polar(&Rect::square(-0.5, -0.5, 1.0)).is_none());
+        assert!(Proposal::polar(&Rect::square(0.0, 0.0, 0.5)).is_none());
     }
 
     #[test]
@@ -767,5 +883,98 @@ mod tests {
         );
         assert!(Shape::fit(&grid(&|_| 2.0)).is_flat());
         assert!(Shape::fit(&grid(&|_| 0.0)).is_flat());
+    }
+
+    /// The fit solves its linear programme: on random point sets (heights from random
+    /// bilinear, bumpy and spiky functions) its corners bound every point and sum to no more
+    /// than the coordinate descent's, and no corner can be lowered alone, nor any pair of
+    /// corners traded (one down by δ, another up by less), without uncovering a point. The
+    /// case that stalls the descent — a radial fall-off with a rim point just inside the
+    /// corner it pins, as the rim band of a polar box on the concentric map has — comes out
+    /// flat along the angle, as the profile is.
+    #[test]
+    fn the_fit_is_the_least_bilinear_bound() {
+        use rand_core::{Rng, SeedableRng};
+        let weigh = |points: &[(DVec2, f64)]| -> alloc::vec::Vec<([f64; 4], f64)> {
+            points
+                .iter()
+                .map(|&(t, h)| {
+                    let (x, y) = (t.x, t.y);
+                    (
+                        [(1.0 - x) * (1.0 - y), x * (1.0 - y), (1.0 - x) * y, x * y],
+                        h,
+                    )
+                })
+                .collect()
+        };
+        let sum = |c: &[f64; 4]| c.iter().sum::<f64>();
+        let covers = |w: &[([f64; 4], f64)], c: &[f64; 4], slack: f64| {
+            w.iter()
+                .all(|(w, h)| w.iter().zip(c).map(|(a, b)| a * b).sum::<f64>() >= h - slack)
+        };
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(77);
+        let mut unit = || (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+        for case in 0..300 {
+            let n = 20 + case % 200;
+            let k: [f64; 6] = core::array::from_fn(|_| unit());
+            let points: alloc::vec::Vec<(DVec2, f64)> = (0..n)
+                .map(|_| {
+                    let t = DVec2::new(unit(), unit());
+                    let h = match case % 3 {
+                        0 => k[0] + k[1] * t.x + k[2] * t.y + k[3] * t.x * t.y,
+                        1 => 1.0 + k[4] * m::sin(7.0 * t.x * k[0] + 5.0 * t.y * k[1]),
+                        _ => m::exp(-30.0 * (t - DVec2::new(k[2], k[3])).length_squared()),
+                    };
+                    (t, h * (0.5 + k[5]))
+                })
+                .collect();
+            let w = weigh(&points);
+            let top = points.iter().map(|p| p.1).fold(0.0, f64::max);
+            let floor = top / 63.0;
+            let c = least_corners(&w, floor).expect("the simplex converges");
+            let slack = 1e-9 * top;
+            assert!(covers(&w, &c, slack), "case {case}: {c:?} uncovers a point");
+            assert!(c.iter().all(|&v| v >= floor - slack), "case {case}: {c:?}");
+            let d = descend(&w, top, floor);
+            assert!(
+                sum(&c) <= sum(&d) + slack,
+                "case {case}: {c:?} vs descent {d:?}"
+            );
+            // Local optimality: single and paired moves all uncover a point.
+            let step = 1e-4 * top;
+            for i in 0..4 {
+                let mut down = c;
+                down[i] -= step;
+                assert!(
+                    down[i] < floor || !covers(&w, &down, 0.0),
+                    "case {case}: corner {i} of {c:?} lowers alone"
+                );
+                for j in (0..4).filter(|&j| j != i) {
+                    let mut trade = down;
+                    trade[j] += 0.5 * step;
+                    assert!(
+                        trade[i] < floor || !covers(&w, &trade, 0.0),
+                        "case {case}: corners {i}, {j} of {c:?} trade"
+                    );
+                }
+            }
+        }
+        // The stalled case: h = 1 − 0.3·x (a fall-off along x, flat along y) on a grid whose
+        // rows stay off the edges y = 0 and 1, with a point just above corner (1, 0) and one
+        // at corner (1, 1) exactly.
+        let mut points: alloc::vec::Vec<(DVec2, f64)> = (0..=8)
+            .flat_map(|i| (0..8).map(move |j| DVec2::new(i as f64 / 8.0, (j as f64 + 0.5) / 8.0)))
+            .map(|t| (t, 1.0 - 0.3 * t.x))
+            .collect();
+        points.push((DVec2::new(1.0, 0.0078), 0.7));
+        points.push((DVec2::new(1.0, 1.0), 0.7));
+        let [a, b, c, d] = Shape::fit(&points).levels();
+        assert_eq!((a, c), (63, 63));
+        assert!((43..=45).contains(&b) && b == d, "{:?}", [a, b, c, d]);
+        let stalled = descend(&weigh(&points), 1.0, 1.0 / 63.0);
+        assert!(
+            stalled[3] > 0.9,
+            "the descent no longer stalls here: {stalled:?}"
+        );
     }
 }

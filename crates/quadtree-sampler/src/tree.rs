@@ -82,13 +82,13 @@ impl Node {
 
     /// The box volume the seed's splitting rule judges the node by: the flat box's (area ×
     /// `box_bound`), except that a polar box counts as the square it stands in for (the same
-    /// points, twice its bound: [`Chart::Polar`]). A height shape or the polar box changes
-    /// how a leaf is sampled, not which nodes the rule splits, so a tree keeps the shape —
-    /// and the warp its proxy — it has with the flat square; target mode, which asks for an
-    /// E\[T\], counts the volume sampling uses.
-    fn seed_box_volume(&self) -> f64 {
+    /// points, its bound over the chart's Jacobian: [`Chart::Polar`]). A height shape or the
+    /// polar box changes how a leaf is sampled, not which nodes the rule splits, so a tree
+    /// keeps the shape — and the warp its proxy — it has with the flat square; target mode,
+    /// which asks for an E\[T\], counts the volume sampling uses.
+    fn seed_box_volume(&self, map: DiskMap) -> f64 {
         if self.proposal.chart == Chart::Polar {
-            self.rect().area() * 2.0 * self.box_bound
+            self.rect().area() * self.box_bound / crate::chart::polar_jacobian(map)
         } else {
             self.proposal.area() * self.box_bound
         }
@@ -234,7 +234,7 @@ impl Quadtree {
                 // Split it, and let its children's finer rules find the mass.
                 // (P and the reducible waste as `acceptance` and `reducible_waste` give them,
                 // of the box the rule judges by.)
-                let seed_box = n.seed_box_volume();
+                let seed_box = n.seed_box_volume(cfg.map);
                 let p = if seed_box > 0.0 { n.v1 / seed_box } else { 0.0 };
                 let wants = n.depth < cfg.max_depth
                     && (n.v1 > 0.0 || n.bound > 0.0)
