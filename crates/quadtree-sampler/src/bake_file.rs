@@ -38,8 +38,9 @@ pub const BAKE_MAGIC: [u8; 8] = *b"BRDFBAKE";
 /// (`brdf_core::geometry::GRAZING_COS`). Version 3: the root and its children may use the
 /// polar chart (orthographic trees). Version 4: leaves may carry a height shape
 /// ([`crate::proposal::Shape`], in bits 3–26 of a leaf's link word). Version 5: the root
-/// and its children may use the polar chart on concentric trees too. A file of any other
-/// version is a typed error (SPEC §7): bake it again.
+/// and its children may use the polar chart on concentric trees too, and a square or polar
+/// leaf may carry a fine height shape (its five further levels in the leaf's third data
+/// word). A file of any other version is a typed error (SPEC §7): bake it again.
 pub const BAKE_FORMAT_VERSION: u32 = 5;
 
 const HEADER: usize = 8 + 4 + 8;

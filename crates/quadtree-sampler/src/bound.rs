@@ -382,8 +382,21 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
             }
         };
         let grid = self.grid(prop, rect, coarse);
+        // A fine shape's quarters are bilinear pieces of their own, each steep where the
+        // shape rises to its peak: h/S may have a maximum in each, so each quarter's best
+        // grid point is climbed.
+        let fine = prop.shape.grid().is_some();
+        let mut quarters = [(f64::NEG_INFINITY, lo); 4];
         for &(q, h) in &grid {
-            consider(over_shape(h, q), q);
+            let r = over_shape(h, q);
+            consider(r, q);
+            if fine {
+                let t = prop.unit(q);
+                let k = usize::from(t.x >= 0.5) + 2 * usize::from(t.y >= 0.5);
+                if r > quarters[k].0 {
+                    quarters[k] = (r, q);
+                }
+            }
         }
         let seed = (seed.0, seed.1.clamp(lo, hi));
         consider(over_shape(seed.0, seed.1), seed.1);
@@ -431,12 +444,30 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
                 .map(|&x| climb(x))
                 .fold(0.0, f64::max)
         };
-        // (A shaped box's grid is twice as fine: its best point alone is climbed.)
+        // (A shaped box's grid is twice as fine: its best point alone is climbed, and a fine
+        // shape's best point in each quarter.)
         let ((h0, from_hints), (h1, h2)) = if flat {
             join(
                 par,
                 || join(par, || climb(best[0]), hints),
                 || join(par, || climb(best[1]), || climb(best[2])),
+            )
+        } else if fine {
+            // (Only quarters whose best point comes near the best of all: a maximum of h/S
+            // far below it at the grid cannot pass it between grid points.)
+            let near = |k: usize| {
+                let q = quarters[k];
+                if q.0 >= 0.9 * best[0].0 && q.1 != best[0].1 {
+                    climb(q)
+                } else {
+                    0.0
+                }
+            };
+            let pair = |a: usize, b: usize| near(a).max(near(b));
+            join(
+                par,
+                || join(par, || climb(best[0]), hints),
+                || join(par, || pair(0, 1), || pair(2, 3)),
             )
         } else {
             (join(par, || climb(best[0]), hints), (0.0, 0.0))

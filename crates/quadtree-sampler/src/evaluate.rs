@@ -30,6 +30,14 @@ pub(crate) struct Evaluation {
 /// maps, θ = 0, 45, 80, 89°) no build time moved beyond run-to-run noise.
 pub(crate) const SHAPE_PROMISE: f64 = 0.97;
 
+/// A node takes a fine height shape (bilinear in each quarter) rather than a bilinear one
+/// only where it promises less than this fraction of the bilinear one's volume.
+pub(crate) const FINE_GAIN: f64 = 0.95;
+
+/// The fine shape is fitted only where the bilinear one promises more than this fraction
+/// of the flat volume.
+pub(crate) const FINE_TRY: f64 = 0.7;
+
 /// The flat polar box's bound from the square's bound `square` of the same node: the same
 /// points with f times the chart's constant Jacobian ([`crate::chart::polar_jacobian`]),
 /// rounded up to f32 (orthographic, ½: exact).
@@ -43,7 +51,7 @@ pub(crate) fn polar_bound(map: DiskMap, square: f64) -> f64 {
 /// 88 MiB). Past it, a new node keeps only the cells of its children's first rule
 /// application, and past twice it none: the memoised cells only save work (a forgotten one
 /// is recomputed bit for bit), so the tree does not depend on this, and the build's memory
-/// stays below about 2 × 88 MiB plus 80 bytes per node.
+/// stays below about 2 × 88 MiB plus 88 bytes per node.
 pub(crate) const CELL_CACHE_LIMIT: usize = 1 << 20;
 
 /// Parents split per batch of the breadth-first pass (between batches the evaluation budget
@@ -288,21 +296,47 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             return (flat, box_bound);
         }
         let points: Vec<(DVec2, f64)> = grid.iter().map(|&(q, h)| (flat.unit(q), h)).collect();
-        let shape = Shape::fit(&points);
-        if shape.is_flat() {
+        // The volume a shape promises on the grid.
+        let promise = |shape: Shape| {
+            let on_grid = points
+                .iter()
+                .map(|&(t, h)| h / shape.value(t))
+                .fold(0.0, f64::max);
+            Proposal { shape, ..flat }.volume(on_grid * safety)
+        };
+        // The bilinear profile, or the fine one (bilinear in each quarter: a peak inside the
+        // node, which no bilinear profile follows) where it promises clearly less (its draw
+        // chooses among sixteen hats, not four).
+        let coarse = Shape::fit(&points);
+        let coarse_promise = if coarse.is_flat() {
+            flat_volume
+        } else {
+            promise(coarse)
+        };
+        let fine = if coarse_promise > FINE_TRY * flat_volume {
+            Shape::fit_fine(&points)
+        } else {
+            Shape::FLAT
+        };
+        let (shape, promised) = if fine.is_flat() {
+            (coarse, coarse_promise)
+        } else {
+            let fine_promise = promise(fine);
+            if fine_promise < FINE_GAIN * coarse_promise {
+                (fine, fine_promise)
+            } else {
+                (coarse, coarse_promise)
+            }
+        };
+        if shape.is_flat() || promised >= SHAPE_PROMISE * flat_volume {
             return (flat, box_bound);
         }
         let prop = Proposal { shape, ..flat };
-        let on_grid = points
-            .iter()
-            .map(|&(t, h)| h / shape.value(t))
-            .fold(0.0, f64::max);
-        if prop.volume(on_grid * safety) >= SHAPE_PROMISE * flat_volume {
-            return (flat, box_bound);
-        }
         let g = self.grid_steps(&prop) as u64 + 1;
-        // (The grid, hints and searches; the rim band where there is one.)
-        self.spend(g * g + 1300 + if rim_limit.is_some() { 7 * 66 } else { 0 });
+        // (The grid, hints and searches, four more for a fine shape's quarters; the rim band
+        // where there is one.)
+        let quarters = if shape.grid().is_some() { 1600 } else { 0 };
+        self.spend(g * g + 1300 + quarters + if rim_limit.is_some() { 7 * 66 } else { 0 });
         let known = Known {
             coarse: Some(&grid[..coarse_len]),
             rim_band: &rim_band,

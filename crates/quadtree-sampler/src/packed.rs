@@ -1,7 +1,7 @@
 //! The sampling layout of a quadtree: 16 bytes per node, one cache line holds four (and a
 //! selection guide of at most 4 KiB).
 //!
-//! The build's [`Quadtree`] keeps everything a node's evaluation found, in f64 (80 bytes a
+//! The build's [`Quadtree`] keeps everything a node's evaluation found, in f64 (88 bytes a
 //! node). Sampling needs far less: at an inner node, which child to descend into; at a leaf,
 //! its bound M and which chart its proposal uses. Everything else follows from the path:
 //!
@@ -12,7 +12,7 @@
 //!   ([`crate::proposal::Shape`]): the square itself, or for a rim leaf (the only ones whose box
 //!   is not their square) a box in angle or sine coordinates, which costs a handful of
 //!   inverse sines to find — those are found once, when the tree is packed or read, and kept
-//!   beside the nodes (40 bytes per rim leaf), so a sample never recomputes them (the polar
+//!   beside the nodes (32 bytes per rim leaf), so a sample never recomputes them (the polar
 //!   box of the root or a root's child is constants: not stored);
 //! - selection is an inverse-CDF lookup: the unit interval, in 2³¹ fixed-point units, is
 //!   cut into one interval per leaf, of width ∝ its v1, in tree order; an inner node stores
@@ -63,7 +63,8 @@ const ONE: u32 = 1 << 31;
 /// v1 > 0 | the height shape's 24 bits from bit 3 (0: flat) | chart, and `data` holds the
 /// bits of M (f32, rounded up, so it still bounds), of
 /// v1 (f32, for inspection only) and, for a rim leaf, its entry in the tree's table of
-/// proposal boxes (0 otherwise; 0 in bake files, where the table is rebuilt on reading).
+/// proposal boxes (0 in bake files, where the table is rebuilt on reading); for a square or
+/// polar leaf, a fine height shape's further levels (`Shape::fine_bits`), or 0.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(C, align(16))]
 pub struct PackedNode {
@@ -100,10 +101,12 @@ impl PackedNode {
     }
 
     /// A leaf's height shape (flat for an inner node; the bits were checked when the node
-    /// was made or read).
+    /// was made or read). A fine shape's further levels are in the third data word, which
+    /// only rim leaves (which take no shape) use otherwise.
     fn shape(&self) -> Shape {
-        if self.is_leaf() {
-            Shape::from_bits((self.link & SHAPE_MASK) >> SHAPE_SHIFT).unwrap_or(Shape::FLAT)
+        if self.is_leaf() && !self.chart().needs_stored_box() {
+            Shape::from_bits((self.link & SHAPE_MASK) >> SHAPE_SHIFT, self.data[2])
+                .unwrap_or(Shape::FLAT)
         } else {
             Shape::FLAT
         }
@@ -250,8 +253,9 @@ pub struct PackedTree {
     /// its cell. Derived from the nodes.
     guide: Vec<SelectStart>,
     guide_bits: u32,
-    /// The proposal boxes of the rim leaves (non-square charts), in tree order.
-    rim: Vec<Proposal>,
+    /// The proposal boxes (lower and upper corners) of the rim leaves (angle and sine
+    /// charts, which take no height shape), in tree order: 32 bytes each.
+    rim: Vec<[glam::DVec2; 2]>,
     map: DiskMap,
     volume: f64,
     stats: TreeStats,
@@ -349,7 +353,11 @@ impl PackedTree {
                     let shape = n.proposal.shape.to_bits() << SHAPE_SHIFT;
                     PackedNode {
                         link: LEAF_FLAG | live | shape | chart,
-                        data: [round_up(n.bound).to_bits(), (n.v1 as f32).to_bits(), 0],
+                        data: [
+                            round_up(n.bound).to_bits(),
+                            (n.v1 as f32).to_bits(),
+                            n.proposal.shape.fine_bits(),
+                        ],
                     }
                 } else {
                     PackedNode {
@@ -400,13 +408,13 @@ impl PackedTree {
             if !n.is_leaf() {
                 continue;
             }
+            // (A square or polar leaf keeps its word: a fine shape's levels, or 0.)
             let chart = n.chart();
-            self.nodes[i].data[2] = if !chart.needs_stored_box() {
-                0
-            } else {
-                self.rim.push(Proposal::in_chart(&rect, chart));
-                (self.rim.len() - 1) as u32
-            };
+            if chart.needs_stored_box() {
+                let b = Proposal::in_chart(&rect, chart);
+                self.rim.push([b.lo, b.hi]);
+                self.nodes[i].data[2] = (self.rim.len() - 1) as u32;
+            }
         }
     }
 
@@ -557,12 +565,20 @@ impl PackedTree {
     pub fn proposal(&self, leaf: &Selected) -> (Proposal, f64) {
         let n = self.nodes[leaf.index];
         let chart = n.chart();
-        let mut prop = if !chart.needs_stored_box() {
-            Proposal::in_chart(&leaf.rect, chart)
+        let prop = if !chart.needs_stored_box() {
+            Proposal {
+                shape: n.shape(),
+                ..Proposal::in_chart(&leaf.rect, chart)
+            }
         } else {
-            self.rim[n.data[2] as usize]
+            let [lo, hi] = self.rim[n.data[2] as usize];
+            Proposal {
+                chart,
+                lo,
+                hi,
+                shape: Shape::FLAT,
+            }
         };
-        prop.shape = n.shape();
         (
             prop,
             if n.is_live_leaf() {
@@ -579,8 +595,14 @@ impl PackedTree {
         self.nodes
             .iter()
             .map(|n| {
-                let rim = if n.is_leaf() { 0 } else { n.data[2] };
-                [n.link, n.data[0], n.data[1], rim]
+                // (A rim leaf's table entry is rebuilt on reading.)
+                let rim = n.is_leaf() && n.chart().needs_stored_box();
+                [
+                    n.link,
+                    n.data[0],
+                    n.data[1],
+                    if rim { 0 } else { n.data[2] },
+                ]
             })
             .collect()
     }
@@ -616,8 +638,15 @@ impl PackedTree {
                 {
                     return Err("a leaf with an unknown chart");
                 }
-                if Shape::from_bits((link & SHAPE_MASK) >> SHAPE_SHIFT).is_none() {
-                    return Err("a leaf with a height shape that has a zero corner");
+                // A rim leaf's third word is rebuilt (its table entry); a square or polar
+                // leaf's is 0 or a fine shape's further levels.
+                let fine = if link & CHART_BITS == 0 || link & CHART_BITS == 4 {
+                    w[3]
+                } else {
+                    0
+                };
+                if Shape::from_bits((link & SHAPE_MASK) >> SHAPE_SHIFT, fine).is_none() {
+                    return Err("a leaf with a height shape that no build writes");
                 }
                 let chart = link & CHART_BITS;
                 // 0 square, 1 angle, 2 sine, 3 transposed angle, 4 polar.

@@ -44,122 +44,244 @@ fn angle_box(lo: DVec2, hi: DVec2, chart: Chart) -> Proposal {
 /// The largest value [`Shape::warp`] returns on an axis: the box's upper edges are open.
 const BELOW_ONE: f64 = 1.0 - f64::EPSILON / 2.0;
 
-/// How a leaf's height bound varies over its proposal box: a bilinear profile S over the
-/// box's unit coordinates t ∈ [0, 1]², given by its values at the four corners, in the child
-/// order of [`crate::chart::child_index`] ((0,0), (1,0), (0,1), (1,1)). Each corner is a
-/// level 1–63 of 63 (so S ∈ (0, 1], a corner at 1 where the profile is highest, and the
-/// six-bit levels fit the packed leaf's spare bits).
+/// How a leaf's height bound varies over its proposal box: a profile S over the box's unit
+/// coordinates t ∈ [0, 1]², given by levels 1–63 of 63 (so S ∈ (0, 1], 1 where the profile
+/// is highest) at control points. A *coarse* shape is bilinear over the box, from its four
+/// corners in the child order of [`crate::chart::child_index`] ((0,0), (1,0), (0,1),
+/// (1,1)); its six-bit levels fit the packed leaf's spare link bits. A *fine* shape has a
+/// 3 × 3 grid of control points t = (i/2, j/2) and is bilinear in each quarter of the box,
+/// so it can rise to a peak inside the box, which no bilinear profile can (its largest
+/// value is at a corner); its five further levels go in the packed leaf's third data word.
 ///
 /// A leaf whose f·Jacobian leans across its box (a lobe's flank, a Fresnel rise toward the
-/// rim, a radial fall-off in the polar box) wastes much of a flat box: its height bound is
-/// the largest value, met in one corner. Under M·S the trials are drawn with density ∝ S
-/// ([`Shape::draw`]) and accepted when a height uniform in [0, M·S(t)) falls below f·J, so
-/// what is accepted is still exactly ∝ f·J, for any S with M·S ≥ f·J; the box's volume
-/// becomes area·M·mean(S) ([`Proposal::volume`]). [`Shape::FLAT`] (every corner 63) is the
-/// seed's flat box.
+/// rim, a radial fall-off in the polar box) or peaks inside it wastes much of a flat box: its
+/// height bound is the largest value, met in one place. Under M·S the trials are drawn with
+/// density ∝ S ([`Shape::draw`]) and accepted when a height uniform in [0, M·S(t)) falls
+/// below f·J, so what is accepted is still exactly ∝ f·J, for any S with M·S ≥ f·J; the
+/// box's volume becomes area·M·mean(S) ([`Proposal::volume`]). [`Shape::FLAT`] (every level
+/// 63) is the seed's flat box.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Shape {
-    levels: [u8; 4],
+    /// Levels at the control points t = (i/2, j/2), index 3j + i. A coarse shape uses the
+    /// corners (0, 2, 6, 8) and keeps 0 elsewhere.
+    grid: [u8; 9],
+    /// Whether the edge midpoints and the centre are control points too.
+    fine: bool,
 }
+
+/// The corners' places in a [`Shape`]'s control grid, in child order.
+const CORNERS: [usize; 4] = [0, 2, 6, 8];
+
+/// The places a fine [`Shape`] adds to its corners (edge midpoints and centre), in the
+/// order of its packed word.
+const FINE_EXTRA: [usize; 5] = [1, 3, 4, 5, 7];
+
+/// Marks a fine [`Shape`]'s packed word (bit 31; bit 30 stays clear).
+const FINE_FLAG: u32 = 1 << 31;
 
 impl Shape {
     /// The seed's flat box: S ≡ 1.
-    pub const FLAT: Self = Self { levels: [63; 4] };
+    pub const FLAT: Self = Self {
+        grid: [63, 0, 63, 0, 0, 0, 63, 0, 63],
+        fine: false,
+    };
 
-    /// A shape from its corner levels (each 1–63, of 63); `None` when one is out of range.
+    /// A coarse shape from its corner levels (each 1–63, of 63), in child order; `None`
+    /// when one is out of range.
     #[must_use]
     pub fn from_levels(levels: [u8; 4]) -> Option<Self> {
-        levels
-            .iter()
-            .all(|l| (1..=63).contains(l))
-            .then_some(Self { levels })
+        if !levels.iter().all(|l| (1..=63).contains(l)) {
+            return None;
+        }
+        let mut grid = [0; 9];
+        for (&at, l) in CORNERS.iter().zip(levels) {
+            grid[at] = l;
+        }
+        Some(Self { grid, fine: false })
+    }
+
+    /// A fine shape from the levels (each 1–63, of 63) at its 3 × 3 control points
+    /// t = (i/2, j/2), index 3j + i; `None` when one is out of range. All 63 is
+    /// [`Shape::FLAT`].
+    #[must_use]
+    pub fn from_grid(grid: [u8; 9]) -> Option<Self> {
+        if !grid.iter().all(|l| (1..=63).contains(l)) {
+            return None;
+        }
+        if grid == [63; 9] {
+            return Some(Self::FLAT);
+        }
+        Some(Self { grid, fine: true })
     }
 
     /// The corner levels (each 1–63, of 63), in child order.
     #[must_use]
     pub fn levels(&self) -> [u8; 4] {
-        self.levels
+        CORNERS.map(|at| self.grid[at])
+    }
+
+    /// A fine shape's nine control levels (index 3j + i at t = (i/2, j/2)); `None` for a
+    /// coarse one.
+    #[must_use]
+    pub fn grid(&self) -> Option<[u8; 9]> {
+        self.fine.then_some(self.grid)
     }
 
     /// Whether this is [`Shape::FLAT`].
     #[inline]
     #[must_use]
     pub fn is_flat(&self) -> bool {
-        self.levels == [63; 4]
+        *self == Self::FLAT
     }
 
     /// The corner values S(0,0), S(1,0), S(0,1), S(1,1).
     #[inline]
     #[must_use]
     pub fn corners(&self) -> [f64; 4] {
-        self.levels.map(|l| f64::from(l) / 63.0)
+        self.levels().map(|l| f64::from(l) / 63.0)
     }
 
-    /// S at box coordinates `t` ∈ [0, 1]² (bilinear between the corners).
+    /// The levels of the bilinear piece that holds `t` and `t` in that piece's own unit
+    /// coordinates: the whole box for a coarse shape, one quarter for a fine one (the upper
+    /// quarter on a midline: the pieces agree there).
+    #[inline]
+    fn piece(&self, t: DVec2) -> ([u8; 4], DVec2) {
+        if !self.fine {
+            return (self.levels(), t);
+        }
+        let (i, j) = (usize::from(t.x >= 0.5), usize::from(t.y >= 0.5));
+        let at = 3 * j + i;
+        let g = &self.grid;
+        (
+            [g[at], g[at + 1], g[at + 3], g[at + 4]],
+            DVec2::new(2.0 * t.x - i as f64, 2.0 * t.y - j as f64),
+        )
+    }
+
+    /// S at box coordinates `t` ∈ [0, 1]² (bilinear between the control points).
     #[inline]
     #[must_use]
     pub fn value(&self, t: DVec2) -> f64 {
-        let [c00, c10, c01, c11] = self.corners();
-        let bottom = c00 + (c10 - c00) * t.x;
-        let top = c01 + (c11 - c01) * t.x;
-        bottom + (top - bottom) * t.y
+        let (levels, u) = self.piece(t);
+        let [c00, c10, c01, c11] = levels.map(|l| f64::from(l) / 63.0);
+        let bottom = c00 + (c10 - c00) * u.x;
+        let top = c01 + (c11 - c01) * u.x;
+        bottom + (top - bottom) * u.y
     }
 
-    /// The mean of S over the box (the mean of its corners).
+    /// The mean of S over the box: of a coarse shape, the mean of its corners; of a fine
+    /// one, the mean of its quarters' (corners once, edge midpoints twice, the centre four
+    /// times, over 16).
     #[must_use]
     pub fn mean(&self) -> f64 {
-        self.corners().iter().sum::<f64>() / 4.0
+        let l = |at: usize| f64::from(self.grid[at]) / 63.0;
+        if !self.fine {
+            return CORNERS.iter().map(|&at| l(at)).sum::<f64>() / 4.0;
+        }
+        let corners: f64 = CORNERS.iter().map(|&at| l(at)).sum();
+        let edges = l(1) + l(3) + l(5) + l(7);
+        (corners + 2.0 * edges + 4.0 * l(4)) / 16.0
     }
 
     /// Maps a uniform point `u` ∈ [0, 1)² to box coordinates t ∈ [0, 1)² with density
-    /// S(t)/mean(S) (per unit box area): x from S's marginal, linear between the left and
-    /// right edges' sums, then y from its conditional at x, linear between the bottom and top
-    /// values there. Each inverts a linear CDF in the cancellation-free form
-    /// x = u(a + b) / (a + √(a²(1 − u) + b²u)) (a, b the density's ends): one square root
-    /// and one division an axis. The identity for [`Shape::FLAT`].
-    #[inline]
+    /// S(t)/mean(S) (per unit box area): x from S's marginal, then y from its conditional
+    /// at x. For a coarse shape each is linear over the box; for a fine one, linear in each
+    /// half (its half chosen by its mass, u rescaled into it). Each linear piece inverts its
+    /// CDF in the cancellation-free form x = u(a + b) / (a + √(a²(1 − u) + b²u)) (a, b the
+    /// density's ends): one square root and one division a piece. The identity for
+    /// [`Shape::FLAT`]. (The rejection trials use [`Shape::draw`].)
     #[must_use]
     pub fn warp(&self, u: DVec2) -> DVec2 {
-        #[inline]
         fn linear(u: f64, a: f64, b: f64) -> f64 {
             let x = u * (a + b) / (a + m::sqrt(a * a * (1.0 - u) + b * b * u));
             x.min(BELOW_ONE)
         }
-        let [c00, c10, c01, c11] = self.corners();
-        let x = linear(u.x, c00 + c01, c10 + c11);
-        let bottom = c00 + (c10 - c00) * x;
-        let top = c01 + (c11 - c01) * x;
-        DVec2::new(x, linear(u.y, bottom, top))
+        // A density linear on each half of [0, 1), with values a, b, c at 0, ½, 1.
+        fn halves(u: f64, a: f64, b: f64, c: f64) -> f64 {
+            let (low, high) = (a + b, b + c);
+            let split = low / (low + high);
+            if u < split {
+                0.5 * linear(u / split, a, b)
+            } else {
+                (0.5 + 0.5 * linear((u - split) / (1.0 - split), b, c)).min(BELOW_ONE)
+            }
+        }
+        if !self.fine {
+            let [c00, c10, c01, c11] = self.corners();
+            let x = linear(u.x, c00 + c01, c10 + c11);
+            let bottom = c00 + (c10 - c00) * x;
+            let top = c01 + (c11 - c01) * x;
+            return DVec2::new(x, linear(u.y, bottom, top));
+        }
+        let l = |at: usize| f64::from(self.grid[at]) / 63.0;
+        // The marginal in x at column i (0, ½, 1): ∫ S dy, the trapezoid of its column.
+        let column = |i: usize| l(i) + 2.0 * l(3 + i) + l(6 + i);
+        let x = halves(u.x, column(0), column(1), column(2));
+        // The conditional in y at x: the column values there, linear in y on each half.
+        let row = |j: usize| {
+            let (a, b, c) = (l(3 * j), l(3 * j + 1), l(3 * j + 2));
+            if x < 0.5 {
+                a + (b - a) * 2.0 * x
+            } else {
+                b + (c - b) * (2.0 * x - 1.0)
+            }
+        };
+        DVec2::new(x, halves(u.y, row(0), row(1), row(2)))
     }
 
     /// Draws box coordinates t ∈ [0, 1)² with density S(t)/mean(S), as [`Shape::warp`] does,
-    /// without its square roots and divisions (two of each, in sequence): `pick` chooses a
-    /// corner k with probability level_k / Σ levels, and `xy` (two 64-bit words: four 32-bit
-    /// uniforms) places t under that corner's tensor-product hat 4·w_k(t) — on each axis the
-    /// larger of two uniforms (density 2x) toward the corner's high side, the smaller
-    /// (2(1 − x)) toward its low side. The hats weighted by the levels sum to S/mean(S)
-    /// exactly; the corner choice rounds `pick` to the levels' integer sum, so its
+    /// without its square roots and divisions: `pick` chooses a bilinear piece's corner k
+    /// with probability level_k / Σ levels (over the four pieces of a fine shape, each
+    /// piece's own corners: the pieces have equal areas), and `xy` (two 64-bit words: four
+    /// 32-bit uniforms) places t under that corner's tensor-product hat 4·w_k over its piece
+    /// — on each axis the larger of two uniforms (density 2x) toward the corner's high side,
+    /// the smaller (2(1 − x)) toward its low side. The hats weighted by the levels sum to
+    /// S/mean(S) exactly; the choice rounds `pick` to the levels' integer sum, so its
     /// probabilities are off by at most 2⁻³² each. The rejection trials use this one.
     #[inline]
     #[must_use]
     pub fn draw(&self, xy: [u64; 2], pick: u32) -> DVec2 {
         const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
-        let [l0, l1, l2, l3] = self.levels.map(u64::from);
-        let point = (u64::from(pick) * (l0 + l1 + l2 + l3)) >> 32;
-        let k = usize::from(point >= l0)
-            + usize::from(point >= l0 + l1)
-            + usize::from(point >= l0 + l1 + l2);
         let pair = |r: u64, high: bool| {
             let (a, b) = ((r >> 32) as u32, r as u32);
             f64::from(if high { a.max(b) } else { a.min(b) }) * TO_UNIT
         };
-        DVec2::new(pair(xy[0], k & 1 == 1), pair(xy[1], k >> 1 == 1))
+        if !self.fine {
+            let [l0, l1, l2, l3] = self.levels().map(u64::from);
+            let point = (u64::from(pick) * (l0 + l1 + l2 + l3)) >> 32;
+            let k = usize::from(point >= l0)
+                + usize::from(point >= l0 + l1)
+                + usize::from(point >= l0 + l1 + l2);
+            return DVec2::new(pair(xy[0], k & 1 == 1), pair(xy[1], k >> 1 == 1));
+        }
+        // The sixteen (piece, corner) pairs: piece q = (i, j) at grid place 3j + i, its
+        // corner k at + (k & 1) + 3·(k >> 1).
+        let g = self.grid.map(u64::from);
+        let level = |q: usize, k: usize| {
+            let at = 3 * (q >> 1) + (q & 1) + (k & 1) + 3 * (k >> 1);
+            g[at]
+        };
+        let total: u64 = (0..16).map(|n| level(n >> 2, n & 3)).sum();
+        let mut point = (u64::from(pick) * total) >> 32;
+        let mut n = 15;
+        for m in 0..16 {
+            let l = level(m >> 2, m & 3);
+            if point < l {
+                n = m;
+                break;
+            }
+            point -= l;
+        }
+        let (q, k) = (n >> 2, n & 3);
+        let u = DVec2::new(pair(xy[0], k & 1 == 1), pair(xy[1], k >> 1 == 1));
+        // (Below ½ in a lower piece; at most ½ + ½·(1 − 2⁻³²) < 1 in an upper one.)
+        DVec2::new(0.5 * (u.x + (q & 1) as f64), 0.5 * (u.y + (q >> 1) as f64))
     }
 
-    /// The bilinear profile that bounds `points` (box coordinates t and heights h ≥ 0) with
-    /// the least volume, as levels relative to its highest corner: the solution of the
-    /// linear programme "least mean corner, S(tᵢ) ≥ hᵢ, every corner at least 1/63 of the
-    /// largest height" (a simplex on its four-row dual, exact up to rounding), or where
+    /// The coarse (bilinear) profile that bounds `points` (box coordinates t and heights
+    /// h ≥ 0) with the least volume, as levels relative to its highest corner: the solution
+    /// of the linear programme "least mean corner, S(tᵢ) ≥ hᵢ, every corner at least 1/63 of
+    /// the largest height" (a simplex on its four-row dual, exact up to rounding), or where
     /// that fails to converge, a coordinate descent from the flat box (each corner in turn
     /// lowered as far as the points allow given the other three). Only the profile matters:
     /// the build's bound search then finds the largest h/S over the leaf, so the shape need
@@ -167,52 +289,138 @@ impl Shape {
     /// is positive.
     #[must_use]
     pub fn fit(points: &[(DVec2, f64)]) -> Self {
-        let top = points.iter().map(|p| p.1).fold(0.0, f64::max);
-        if !(top > 0.0 && top.is_finite()) {
+        let Some((top, floor)) = heights(points) else {
             return Self::FLAT;
-        }
-        let floor = top / 63.0;
-        // Each positive point's corner weights, once.
+        };
         let weighted: alloc::vec::Vec<([f64; 4], f64)> = points
             .iter()
             .filter(|p| p.1 > 0.0)
-            .map(|&(t, h)| {
-                let (x, y) = (t.x.clamp(0.0, 1.0), t.y.clamp(0.0, 1.0));
-                (
-                    [(1.0 - x) * (1.0 - y), x * (1.0 - y), (1.0 - x) * y, x * y],
-                    h,
-                )
-            })
+            .map(|&(t, h)| (bilinear_weights(t.clamp(DVec2::ZERO, DVec2::ONE)), h))
             .collect();
-        let c = least_corners(&weighted, floor).unwrap_or_else(|| descend(&weighted, top, floor));
-        let high = c.iter().copied().fold(0.0, f64::max);
-        // (Rounded to the nearest level: + ½, then truncated; every value is positive.)
-        let levels = c.map(|v| (v / high * 63.0 + 0.5).clamp(1.0, 63.0) as u8);
-        Self { levels }
+        let c =
+            least_bound(&weighted, [floor; 4]).unwrap_or_else(|| descend(&weighted, top, floor));
+        let levels = to_levels(c);
+        Self::from_levels(levels).unwrap_or(Self::FLAT)
     }
 
-    /// The 24 bits a packed leaf keeps (six a corner, corner 0 lowest); 0 for the flat box.
+    /// The fine profile (bilinear in each quarter) that bounds `points` with the least
+    /// volume, as [`Shape::fit`] finds the coarse one: the linear programme "least mean(S),
+    /// S(tᵢ) ≥ hᵢ, every level at least 1/63 of the largest height" over the nine control
+    /// values (mean(S) weighs corners 1, edge midpoints 2, the centre 4), solved by the
+    /// simplex on its nine-row dual.
+    #[must_use]
+    pub fn fit_fine(points: &[(DVec2, f64)]) -> Self {
+        let Some((top, floor)) = heights(points) else {
+            return Self::FLAT;
+        };
+        // Each point's weights on the nine control values, divided by the control value's
+        // share of the mean, so that the programme's objective is their plain sum.
+        const SHARE: [f64; 9] = [1.0, 2.0, 1.0, 2.0, 4.0, 2.0, 1.0, 2.0, 1.0];
+        let weighted: alloc::vec::Vec<([f64; 9], f64)> = points
+            .iter()
+            .filter(|p| p.1 > 0.0)
+            .map(|&(t, h)| {
+                let fine = Shape {
+                    grid: [1; 9],
+                    fine: true,
+                };
+                let (_, u) = fine.piece(t.clamp(DVec2::ZERO, DVec2::ONE));
+                let (i, j) = (usize::from(t.x >= 0.5), usize::from(t.y >= 0.5));
+                let at = 3 * j + i;
+                let mut w = [0.0; 9];
+                for (k, wk) in bilinear_weights(u).into_iter().enumerate() {
+                    let place = at + (k & 1) + 3 * (k >> 1);
+                    w[place] = wk / SHARE[place];
+                }
+                (w, h)
+            })
+            .collect();
+        // In the scaled variables y = share·c each floor is share × the common one.
+        let Some(y) = least_bound(&weighted, SHARE.map(|s| s * floor)) else {
+            return Self::FLAT;
+        };
+        let c: [f64; 9] = core::array::from_fn(|k| y[k] / SHARE[k]);
+        let high = c.iter().copied().fold(0.0, f64::max);
+        if !(high > 0.0 && high.is_finite() && high >= top / 63.0) {
+            return Self::FLAT;
+        }
+        Self::from_grid(c.map(|v| (v / high * 63.0 + 0.5).clamp(1.0, 63.0) as u8))
+            .unwrap_or(Self::FLAT)
+    }
+
+    /// The 24 bits a packed leaf keeps in its link (six a corner, corner 0 lowest); 0 for
+    /// the flat box.
     pub(crate) fn to_bits(self) -> u32 {
         if self.is_flat() {
             return 0;
         }
-        self.levels
+        self.levels()
             .iter()
             .enumerate()
             .fold(0, |bits, (k, &l)| bits | u32::from(l) << (6 * k))
     }
 
-    /// The shape of [`Shape::to_bits`]; `None` for bits that no shape writes (a level 0 in
-    /// a non-zero word, or bits above the 24).
-    pub(crate) fn from_bits(bits: u32) -> Option<Self> {
-        if bits == 0 {
-            return Some(Self::FLAT);
+    /// The word a packed leaf keeps for a fine shape's five further levels (edge midpoints
+    /// and centre, six bits each from bit 0, [`FINE_FLAG`] set); 0 for a coarse shape.
+    pub(crate) fn fine_bits(self) -> u32 {
+        if !self.fine {
+            return 0;
         }
+        FINE_EXTRA
+            .iter()
+            .enumerate()
+            .fold(FINE_FLAG, |bits, (k, &at)| {
+                bits | u32::from(self.grid[at]) << (6 * k)
+            })
+    }
+
+    /// The shape of [`Shape::to_bits`] and [`Shape::fine_bits`]; `None` for bits that no
+    /// shape writes (a level 0 in a non-zero word, bits above the 24 or between the fine
+    /// word's levels and its flag, a fine word beside a flat link).
+    pub(crate) fn from_bits(bits: u32, fine: u32) -> Option<Self> {
         if bits >> 24 != 0 {
             return None;
         }
-        Self::from_levels([0, 1, 2, 3].map(|k| ((bits >> (6 * k)) & 63) as u8))
+        let corner = |k: usize| ((bits >> (6 * k)) & 63) as u8;
+        if fine == 0 {
+            if bits == 0 {
+                return Some(Self::FLAT);
+            }
+            return Self::from_levels([0, 1, 2, 3].map(corner));
+        }
+        if bits == 0 || fine & !(FINE_FLAG | ((1 << 30) - 1)) != 0 || fine & FINE_FLAG == 0 {
+            return None;
+        }
+        let mut grid = [0; 9];
+        for (k, &at) in CORNERS.iter().enumerate() {
+            grid[at] = corner(k);
+        }
+        for (k, &at) in FINE_EXTRA.iter().enumerate() {
+            grid[at] = ((fine >> (6 * k)) & 63) as u8;
+        }
+        Self::from_grid(grid)
     }
+}
+
+/// The weights of a point t ∈ [0, 1]² on a bilinear piece's corners, in child order.
+#[inline]
+fn bilinear_weights(t: DVec2) -> [f64; 4] {
+    let (x, y) = (t.x, t.y);
+    [(1.0 - x) * (1.0 - y), x * (1.0 - y), (1.0 - x) * y, x * y]
+}
+
+/// The largest height of `points` and the floor every level keeps (1/63 of it); `None`
+/// when no height is positive and finite.
+fn heights(points: &[(DVec2, f64)]) -> Option<(f64, f64)> {
+    let top = points.iter().map(|p| p.1).fold(0.0, f64::max);
+    (top > 0.0 && top.is_finite()).then_some((top, top / 63.0))
+}
+
+/// Corner values as levels relative to the highest (rounded to the nearest: + ½, then
+/// truncated; every value is positive).
+fn to_levels(c: [f64; 4]) -> [u8; 4] {
+    let high = c.iter().copied().fold(0.0, f64::max);
+    c.map(|v| (v / high * 63.0 + 0.5).clamp(1.0, 63.0) as u8)
 }
 
 /// The box of a leaf in its sampling chart, and the map from chart coordinates back.
@@ -417,70 +625,78 @@ impl Proposal {
     }
 }
 
-/// The corners c of the bilinear profile Σₖ wₖ(tᵢ)·cₖ with the least sum that bounds every
-/// weighted point (`weighted`: corner weights, summing to 1, and height h), each corner at
-/// least `floor`: the linear programme min Σc, W·c ≥ h, c ≥ floor. With c = floor + x it is
-/// min Σx, W·x ≥ g (g = h − floor; points at or below the floor bind nothing), x ≥ 0, whose
-/// dual max g·y, Wᵀ·y ≤ 1, y ≥ 0 has four rows: the primal simplex on the dual keeps a 4 × 4
-/// basis (slacks first), enters the column of largest reduced cost gᵢ − π·wᵢ, and stops when
-/// none is positive; the dual prices π are then the optimal x. A coordinate descent (the
-/// fallback, [`descend`]) stops at the first corner that cannot move alone, where a point
-/// near one corner pins two; the simplex moves corners together. `None` where it does not
-/// converge in 64 pivots (degenerate cycling) or meets a singular basis.
-fn least_corners(weighted: &[([f64; 4], f64)], floor: f64) -> Option<[f64; 4]> {
-    let cols: alloc::vec::Vec<([f64; 4], f64)> = weighted
+/// The control values c of the profile Σₖ wₖ(tᵢ)·cₖ with the least sum that bounds every
+/// weighted point (`weighted`: weights on the N control values and a height h), each value
+/// at least its floor: the linear programme min Σc, W·c ≥ h, c ≥ floors. With
+/// c = floors + x it is min Σx, W·x ≥ g (g = h − W·floors; points that the floors already
+/// bound bind nothing), x ≥ 0, whose dual max g·y, Wᵀ·y ≤ 1, y ≥ 0 has N rows: the primal
+/// simplex on the dual keeps an N × N basis (slacks first), enters the column of largest
+/// reduced cost gᵢ − π·wᵢ, and stops when none is positive; the dual prices π are then
+/// the optimal x. A coordinate descent (the coarse fit's fallback, [`descend`]) stops at the
+/// first corner that cannot move alone, where a point near one corner pins two; the simplex
+/// moves values together. `None` where it does not converge in 16·N pivots (degenerate
+/// cycling) or meets a singular basis.
+fn least_bound<const N: usize>(weighted: &[([f64; N], f64)], floors: [f64; N]) -> Option<[f64; N]> {
+    let cols: alloc::vec::Vec<([f64; N], f64)> = weighted
         .iter()
-        .filter(|(_, h)| *h > floor)
-        .map(|&(w, h)| (w, h - floor))
+        .map(|&(w, h)| (w, h - w.iter().zip(floors).map(|(a, b)| a * b).sum::<f64>()))
+        .filter(|&(_, g)| g > 0.0)
         .collect();
-    // Basis: column indices, `usize::MAX - k` for slack k.
-    let slack = |k: usize| usize::MAX - k;
-    let mut basis = [slack(0), slack(1), slack(2), slack(3)];
-    let column = |j: usize| -> ([f64; 4], f64) {
-        if j >= usize::MAX - 3 {
-            let mut e = [0.0; 4];
-            e[usize::MAX - j] = 1.0;
+    let scale = cols.iter().map(|c| c.1).fold(0.0, f64::max);
+    // Basis: column indices; slack k is `cols.len() + k`.
+    let slack = |k: usize| cols.len() + k;
+    let column = |j: usize| -> ([f64; N], f64) {
+        if j >= cols.len() {
+            let mut e = [0.0; N];
+            e[j - cols.len()] = 1.0;
             (e, 0.0)
         } else {
             cols[j]
         }
     };
-    let scale = cols.iter().map(|c| c.1).fold(0.0, f64::max);
-    for _ in 0..64 {
-        // B⁻¹ by Gauss–Jordan on [B | I] (B's columns are the basic columns).
-        let mut a = [[0.0f64; 8]; 4];
+    let mut basis: [usize; N] = core::array::from_fn(slack);
+    // [B | I], reduced to [I | B⁻¹] each pivot (N ≤ 9: a few hundred operations).
+    let width = 2 * N;
+    let mut a = alloc::vec![0.0f64; N * width];
+    for _ in 0..16 * N {
+        a.fill(0.0);
         for (k, &j) in basis.iter().enumerate() {
             let (w, _) = column(j);
-            for r in 0..4 {
-                a[r][k] = w[r];
+            for (r, wr) in w.iter().enumerate() {
+                a[r * width + k] = *wr;
             }
-            a[k][4 + k] = 1.0;
+            a[k * width + N + k] = 1.0;
         }
-        for col in 0..4 {
-            let pivot = (col..4).max_by(|&p, &q| a[p][col].abs().total_cmp(&a[q][col].abs()))?;
-            if a[pivot][col].abs() < 1e-12 {
+        for col in 0..N {
+            let pivot = (col..N).max_by(|&p, &q| {
+                a[p * width + col]
+                    .abs()
+                    .total_cmp(&a[q * width + col].abs())
+            })?;
+            if a[pivot * width + col].abs() < 1e-12 {
                 return None;
             }
-            a.swap(col, pivot);
-            let d = a[col][col];
-            for v in &mut a[col] {
-                *v /= d;
+            for c in 0..width {
+                a.swap(col * width + c, pivot * width + c);
             }
-            let pivot_row = a[col];
-            for (r, row) in a.iter_mut().enumerate() {
-                let f = row[col];
-                if r != col && f != 0.0 {
-                    for (v, p) in row.iter_mut().zip(pivot_row) {
-                        *v -= f * p;
+            let d = a[col * width + col];
+            for c in 0..width {
+                a[col * width + c] /= d;
+            }
+            for r in (0..N).filter(|&r| r != col) {
+                let f = a[r * width + col];
+                if f != 0.0 {
+                    for c in 0..width {
+                        a[r * width + c] -= f * a[col * width + c];
                     }
                 }
             }
         }
-        let inv = |r: usize, c: usize| a[r][4 + c];
+        let inv = |r: usize, c: usize| a[r * width + N + c];
         // Prices π = c_Bᵀ·B⁻¹ and basic values β = B⁻¹·1.
-        let cost: [f64; 4] = basis.map(|j| column(j).1);
-        let pi: [f64; 4] = core::array::from_fn(|c| (0..4).map(|r| cost[r] * inv(r, c)).sum());
-        let beta: [f64; 4] = core::array::from_fn(|r| (0..4).map(|c| inv(r, c)).sum());
+        let cost: [f64; N] = basis.map(|j| column(j).1);
+        let pi: [f64; N] = core::array::from_fn(|c| (0..N).map(|r| cost[r] * inv(r, c)).sum());
+        let beta: [f64; N] = core::array::from_fn(|r| (0..N).map(|c| inv(r, c)).sum());
         // Entering: the largest reduced cost (a slack's is −πₖ).
         let mut best = (1e-12 * scale.max(f64::MIN_POSITIVE), None);
         for (k, &p) in pi.iter().enumerate() {
@@ -489,7 +705,7 @@ fn least_corners(weighted: &[([f64; 4], f64)], floor: f64) -> Option<[f64; 4]> {
             }
         }
         for (j, (w, g)) in cols.iter().enumerate() {
-            let reduced = g - (pi[0] * w[0] + pi[1] * w[1] + pi[2] * w[2] + pi[3] * w[3]);
+            let reduced = g - w.iter().zip(pi).map(|(a, b)| a * b).sum::<f64>();
             if reduced > best.0 {
                 best = (reduced, Some(j));
             }
@@ -498,12 +714,12 @@ fn least_corners(weighted: &[([f64; 4], f64)], floor: f64) -> Option<[f64; 4]> {
             return pi
                 .iter()
                 .all(|x| x.is_finite())
-                .then(|| pi.map(|x| floor + x.max(0.0)));
+                .then(|| core::array::from_fn(|k| floors[k] + pi[k].max(0.0)));
         };
         // Leaving: the ratio test on d = B⁻¹·a.
         let (w, _) = column(enter);
-        let d: [f64; 4] = core::array::from_fn(|r| (0..4).map(|c| inv(r, c) * w[c]).sum());
-        let leave = (0..4)
+        let d: [f64; N] = core::array::from_fn(|r| (0..N).map(|c| inv(r, c) * w[c]).sum());
+        let leave = (0..N)
             .filter(|&r| d[r] > 1e-12)
             .min_by(|&p, &q| (beta[p] / d[p]).total_cmp(&(beta[q] / d[q])))?;
         basis[leave] = enter;
@@ -511,7 +727,7 @@ fn least_corners(weighted: &[([f64; 4], f64)], floor: f64) -> Option<[f64; 4]> {
     None
 }
 
-/// The coordinate descent behind [`Shape::fit`] where [`least_corners`] fails: from the
+/// The coordinate descent behind [`Shape::fit`] where [`least_bound`] fails: from the
 /// flat box at `top`, each corner in turn lowered as far as the points allow given the
 /// other three (never below `floor`), until no corner moves by a thousandth of the top.
 fn descend(weighted: &[([f64; 4], f64)], top: f64, floor: f64) -> [f64; 4] {
@@ -787,10 +1003,11 @@ mod tests {
         chi_square_z(&counts, &probabilities, n)
     }
 
-    /// `warp` and `draw` draw with density S/mean(S), for steep, skewed and gentle shapes,
-    /// and `warp` for the flat one (χ² on 63 degrees of freedom, one-sided α = 10⁻⁴ per
-    /// draw: z < 3.72; fixed seeds). Negative control: uniform points judged against a
-    /// leaning shape are rejected.
+    /// `warp` and `draw` draw with density S/mean(S), for steep, skewed and gentle coarse
+    /// shapes and peaked, ridged and skewed fine ones, and `warp` for the flat one (χ² on 63
+    /// degrees of freedom, one-sided α = 10⁻⁴ per draw: z < 3.72; fixed seeds). Negative
+    /// controls: uniform points judged against a leaning shape, and a peak's corners drawn
+    /// as a bilinear shape judged against the peak, are rejected.
     #[test]
     fn the_warp_follows_the_bilinear_density() {
         let shapes = [
@@ -819,11 +1036,38 @@ mod tests {
             let z = draws_z(shape, draw, 21 + k as u64);
             assert!(z < 3.72, "draw {levels:?}: z = {z:.2}");
         }
+        // Fine shapes (bilinear in each quarter): a central peak, a ridge, a skew.
+        let fine = [
+            [1, 20, 1, 20, 63, 20, 1, 20, 1],
+            [5, 63, 5, 5, 63, 5, 5, 63, 5],
+            [63, 12, 40, 3, 30, 1, 22, 50, 9],
+        ];
+        for (k, grid) in fine.into_iter().enumerate() {
+            let shape = Shape::from_grid(grid).unwrap();
+            let z = warp_z(shape, |u| shape.warp(u), 31 + k as u64);
+            assert!(z < 3.72, "warp {grid:?}: z = {z:.2}");
+            let draw = |rng: &mut rand_pcg::Pcg64| {
+                shape.draw([rng.next_u64(), rng.next_u64()], rng.next_u32())
+            };
+            let z = draws_z(shape, draw, 41 + k as u64);
+            assert!(z < 3.72, "draw {grid:?}: z = {z:.2}");
+        }
         let leaning = Shape::from_levels([20, 63, 20, 63]).unwrap();
         let wrong = warp_z(leaning, |u| u, 5);
         assert!(
             wrong > 10.0,
             "uniform points pass as leaning: z = {wrong:.2}"
+        );
+        // A peak drawn as the bilinear shape of its corners is refused.
+        let peak = Shape::from_grid(fine[0]).unwrap();
+        let corners = Shape::from_levels(peak.levels()).unwrap();
+        let draw = |rng: &mut rand_pcg::Pcg64| {
+            corners.draw([rng.next_u64(), rng.next_u64()], rng.next_u32())
+        };
+        let wrong = draws_z(peak, draw, 6);
+        assert!(
+            wrong > 10.0,
+            "corner draws pass as the peak: z = {wrong:.2}"
         );
     }
 
@@ -832,7 +1076,8 @@ mod tests {
     #[test]
     fn shape_bits_round_trip() {
         assert_eq!(Shape::FLAT.to_bits(), 0);
-        assert_eq!(Shape::from_bits(0), Some(Shape::FLAT));
+        assert_eq!(Shape::FLAT.fine_bits(), 0);
+        assert_eq!(Shape::from_bits(0, 0), Some(Shape::FLAT));
         for levels in [
             [1, 2, 3, 4],
             [63, 1, 63, 1],
@@ -840,13 +1085,78 @@ mod tests {
             [63, 63, 63, 62],
         ] {
             let s = Shape::from_levels(levels).unwrap();
-            assert_eq!(Shape::from_bits(s.to_bits()), Some(s));
+            assert_eq!(s.fine_bits(), 0);
+            assert_eq!(Shape::from_bits(s.to_bits(), 0), Some(s));
             assert!(s.to_bits() < 1 << 24);
         }
+        for grid in [
+            [1, 2, 3, 4, 63, 6, 7, 8, 9],
+            [63, 63, 63, 63, 62, 63, 63, 63, 63],
+            [5, 40, 5, 40, 63, 40, 5, 40, 5],
+        ] {
+            let s = Shape::from_grid(grid).unwrap();
+            assert_eq!(s.grid(), Some(grid));
+            assert_eq!(s.levels(), [grid[0], grid[2], grid[6], grid[8]]);
+            assert_eq!(Shape::from_bits(s.to_bits(), s.fine_bits()), Some(s));
+            assert!(s.to_bits() < 1 << 24 && s.fine_bits() >> 30 == 2);
+        }
+        assert_eq!(Shape::from_grid([63; 9]), Some(Shape::FLAT));
         assert_eq!(Shape::from_levels([0, 5, 5, 5]), None);
         assert_eq!(Shape::from_levels([64, 5, 5, 5]), None);
-        assert_eq!(Shape::from_bits(5 << 6), None);
-        assert_eq!(Shape::from_bits(Shape::FLAT.to_bits() | 1 << 24), None);
+        assert_eq!(Shape::from_grid([5, 5, 5, 5, 0, 5, 5, 5, 5]), None);
+        assert_eq!(Shape::from_bits(5 << 6, 0), None);
+        assert_eq!(Shape::from_bits(Shape::FLAT.to_bits() | 1 << 24, 0), None);
+        // A fine word needs its flag, no bit 30, levels 1–63 and corners beside it.
+        let s = Shape::from_grid([5, 40, 5, 40, 63, 40, 5, 40, 5]).unwrap();
+        let (link, fine) = (s.to_bits(), s.fine_bits());
+        assert_eq!(Shape::from_bits(link, fine & !FINE_FLAG), None);
+        assert_eq!(Shape::from_bits(link, fine | 1 << 30), None);
+        assert_eq!(Shape::from_bits(link, fine & !63), None);
+        assert_eq!(Shape::from_bits(0, fine), None);
+    }
+
+    /// A fine shape is bilinear in each quarter, continuous across the midlines, equal to
+    /// its levels at the control points; its mean is the mean of the quarters'; and a fine
+    /// grid that is bilinear over the box (midpoints the corners' averages) is the coarse
+    /// shape there.
+    #[test]
+    fn fine_shapes_are_bilinear_in_each_quarter() {
+        let s = Shape::from_grid([10, 30, 20, 40, 63, 5, 1, 50, 25]).unwrap();
+        for j in 0..3 {
+            for i in 0..3 {
+                let t = DVec2::new(i as f64, j as f64) / 2.0;
+                let want = f64::from(s.grid().unwrap()[3 * j + i]) / 63.0;
+                assert!((s.value(t) - want).abs() < 1e-15, "{t}");
+            }
+        }
+        for k in 0..=64 {
+            let y = k as f64 / 64.0;
+            let (a, b) = (DVec2::new(0.5 - 1e-13, y), DVec2::new(0.5, y));
+            assert!(
+                (s.value(a) - s.value(b)).abs() < 1e-11,
+                "x midline at y {y}"
+            );
+            let (a, b) = (DVec2::new(y, 0.5 - 1e-13), DVec2::new(y, 0.5));
+            assert!(
+                (s.value(a) - s.value(b)).abs() < 1e-11,
+                "y midline at x {y}"
+            );
+        }
+        let n = 512;
+        let mut sum = 0.0;
+        for i in 0..n {
+            for j in 0..n {
+                sum += s.value((DVec2::new(i as f64, j as f64) + 0.5) / n as f64);
+            }
+        }
+        assert!((sum / (n * n) as f64 - s.mean()).abs() < 1e-6);
+        let coarse = Shape::from_levels([2, 10, 18, 26]).unwrap();
+        let fine = Shape::from_grid([2, 6, 10, 10, 14, 18, 18, 22, 26]).unwrap();
+        for k in 0..100 {
+            let t = DVec2::new((k % 10) as f64 / 9.0, (k / 10) as f64 / 9.0);
+            assert!((coarse.value(t) - fine.value(t)).abs() < 1e-14, "{t}");
+        }
+        assert!((coarse.mean() - fine.mean()).abs() < 1e-15);
     }
 
     /// A height that leans linearly across the box gets a shape that leans with it: its
@@ -931,7 +1241,7 @@ mod tests {
             let w = weigh(&points);
             let top = points.iter().map(|p| p.1).fold(0.0, f64::max);
             let floor = top / 63.0;
-            let c = least_corners(&w, floor).expect("the simplex converges");
+            let c = least_bound(&w, [floor; 4]).expect("the simplex converges");
             let slack = 1e-9 * top;
             assert!(covers(&w, &c, slack), "case {case}: {c:?} uncovers a point");
             assert!(c.iter().all(|&v| v >= floor - slack), "case {case}: {c:?}");
@@ -976,5 +1286,69 @@ mod tests {
             stalled[3] > 0.9,
             "the descent no longer stalls here: {stalled:?}"
         );
+    }
+
+    /// The fine fit's programme (nine control values, each point weighing the four of its
+    /// quarter, per-value floors) is solved too: feasible and locally optimal on random
+    /// instances. A central peak gets a fine shape that rises to it, whose bound over the
+    /// grid holds under half the volume of the best bilinear one's.
+    #[test]
+    fn the_fine_fit_follows_a_peak() {
+        use rand_core::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(78);
+        let mut unit = || (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+        for case in 0..100 {
+            let floors: [f64; 9] = core::array::from_fn(|_| 0.01 + 0.05 * unit());
+            let weighted: alloc::vec::Vec<([f64; 9], f64)> = (0..30 + 3 * case)
+                .map(|_| {
+                    let t = DVec2::new(unit(), unit());
+                    let (i, j) = (usize::from(t.x >= 0.5), usize::from(t.y >= 0.5));
+                    let u = DVec2::new(2.0 * t.x - i as f64, 2.0 * t.y - j as f64);
+                    let mut w = [0.0; 9];
+                    for (k, wk) in bilinear_weights(u).into_iter().enumerate() {
+                        w[3 * j + i + (k & 1) + 3 * (k >> 1)] = wk;
+                    }
+                    (w, unit() * (1.0 + m::sin(9.0 * t.x) * m::cos(7.0 * t.y)))
+                })
+                .collect();
+            let c = least_bound(&weighted, floors).expect("the simplex converges");
+            let covers = |c: &[f64; 9], slack: f64| {
+                weighted
+                    .iter()
+                    .all(|(w, h)| w.iter().zip(c).map(|(a, b)| a * b).sum::<f64>() >= h - slack)
+            };
+            assert!(covers(&c, 1e-9), "case {case}: {c:?}");
+            for k in 0..9 {
+                assert!(c[k] >= floors[k] - 1e-12, "case {case}: {c:?}");
+                let mut down = c;
+                down[k] -= 1e-5;
+                assert!(
+                    down[k] < floors[k] || !covers(&down, 0.0),
+                    "case {case}: value {k} of {c:?} lowers alone"
+                );
+            }
+        }
+        let grid: alloc::vec::Vec<(DVec2, f64)> = (0..=16)
+            .flat_map(|i| (0..=16).map(move |j| DVec2::new(i as f64, j as f64) / 16.0))
+            .map(|t| (t, m::exp(-12.0 * (t - DVec2::splat(0.5)).length_squared())))
+            .collect();
+        let volume = |s: Shape| {
+            let m = grid
+                .iter()
+                .map(|&(t, h)| h / s.value(t))
+                .fold(0.0, f64::max);
+            m * s.mean()
+        };
+        let (coarse, fine) = (Shape::fit(&grid), Shape::fit_fine(&grid));
+        let g = fine.grid().expect("a fine shape");
+        assert_eq!(g[4], 63, "{g:?}");
+        assert!(CORNERS.iter().all(|&at| g[at] < 20), "{g:?}");
+        assert!(
+            volume(fine) < 0.5 * volume(coarse),
+            "fine {} vs coarse {}",
+            volume(fine),
+            volume(coarse)
+        );
+        assert!(Shape::fit_fine(&[(DVec2::ZERO, 0.0)]).is_flat());
     }
 }

@@ -324,7 +324,7 @@ fn packed_selection_matches_v1_and_reaches_every_live_leaf() {
         let tree =
             Quadtree::new(&*b, dir(theta, 10.0), BuildConfig::with_target_trials(1.3)).unwrap();
         let packed = PackedTree::new(&tree);
-        // 16 bytes a node, 40 a leaf sampled in an angle or sine chart (its box, found once;
+        // 16 bytes a node, 32 a leaf sampled in an angle or sine chart (its box, found once;
         // a polar box is constants), and 16 a selection-guide entry: the largest power of two
         // up to half the node count (at least 1, at most 256).
         let rim_leaves = tree
@@ -339,8 +339,8 @@ fn packed_selection_matches_v1_and_reaches_every_live_leaf() {
             .unwrap();
         assert_eq!(
             packed.stats().bytes,
-            16 * n + 40 * rim_leaves + 16 * guide,
-            "{name}: 16 bytes a node, 40 a rim leaf, 16 a guide entry"
+            16 * n + 32 * rim_leaves + 16 * guide,
+            "{name}: 16 bytes a node, 32 a rim leaf, 16 a guide entry"
         );
         let p = packed.selection_probabilities();
         let volume = tree.volume();
