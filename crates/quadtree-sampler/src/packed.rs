@@ -103,10 +103,10 @@ impl PackedNode {
     /// A leaf's height shape (flat for an inner node; the bits were checked when the node
     /// was made or read). A fine shape's further levels are in the third data word, which
     /// only rim leaves (which take no shape) use otherwise.
+    #[inline]
     fn shape(&self) -> Shape {
         if self.is_leaf() && !self.chart().needs_stored_box() {
-            Shape::from_bits((self.link & SHAPE_MASK) >> SHAPE_SHIFT, self.data[2])
-                .unwrap_or(Shape::FLAT)
+            Shape::from_checked_bits((self.link & SHAPE_MASK) >> SHAPE_SHIFT, self.data[2])
         } else {
             Shape::FLAT
         }

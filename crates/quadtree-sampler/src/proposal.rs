@@ -163,10 +163,7 @@ impl Shape {
     #[must_use]
     pub fn value(&self, t: DVec2) -> f64 {
         let (levels, u) = self.piece(t);
-        let [c00, c10, c01, c11] = levels.map(|l| f64::from(l) / 63.0);
-        let bottom = c00 + (c10 - c00) * u.x;
-        let top = c01 + (c11 - c01) * u.x;
-        bottom + (top - bottom) * u.y
+        bilinear(levels.map(|l| f64::from(l) / 63.0), u)
     }
 
     /// The mean of S over the box: of a coarse shape, the mean of its corners; of a fine
@@ -241,41 +238,7 @@ impl Shape {
     #[inline]
     #[must_use]
     pub fn draw(&self, xy: [u64; 2], pick: u32) -> DVec2 {
-        const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
-        let pair = |r: u64, high: bool| {
-            let (a, b) = ((r >> 32) as u32, r as u32);
-            f64::from(if high { a.max(b) } else { a.min(b) }) * TO_UNIT
-        };
-        if !self.fine {
-            let [l0, l1, l2, l3] = self.levels().map(u64::from);
-            let point = (u64::from(pick) * (l0 + l1 + l2 + l3)) >> 32;
-            let k = usize::from(point >= l0)
-                + usize::from(point >= l0 + l1)
-                + usize::from(point >= l0 + l1 + l2);
-            return DVec2::new(pair(xy[0], k & 1 == 1), pair(xy[1], k >> 1 == 1));
-        }
-        // The sixteen (piece, corner) pairs: piece q = (i, j) at grid place 3j + i, its
-        // corner k at + (k & 1) + 3·(k >> 1).
-        let g = self.grid.map(u64::from);
-        let level = |q: usize, k: usize| {
-            let at = 3 * (q >> 1) + (q & 1) + (k & 1) + 3 * (k >> 1);
-            g[at]
-        };
-        let total: u64 = (0..16).map(|n| level(n >> 2, n & 3)).sum();
-        let mut point = (u64::from(pick) * total) >> 32;
-        let mut n = 15;
-        for m in 0..16 {
-            let l = level(m >> 2, m & 3);
-            if point < l {
-                n = m;
-                break;
-            }
-            point -= l;
-        }
-        let (q, k) = (n >> 2, n & 3);
-        let u = DVec2::new(pair(xy[0], k & 1 == 1), pair(xy[1], k >> 1 == 1));
-        // (Below ½ in a lower piece; at most ½ + ½·(1 − 2⁻³²) < 1 in an upper one.)
-        DVec2::new(0.5 * (u.x + (q & 1) as f64), 0.5 * (u.y + (q >> 1) as f64))
+        Prepared::new(*self).draw(xy, pick)
     }
 
     /// The coarse (bilinear) profile that bounds `points` (box coordinates t and heights
@@ -374,6 +337,28 @@ impl Shape {
             })
     }
 
+    /// The shape of bits [`Shape::from_bits`] accepted (a packed leaf's, checked when it
+    /// was made or read), without checking them again: a sample decodes its leaf's shape.
+    #[inline]
+    pub(crate) fn from_checked_bits(bits: u32, fine: u32) -> Self {
+        if bits == 0 {
+            return Self::FLAT;
+        }
+        let mut grid = [0; 9];
+        for (k, &at) in CORNERS.iter().enumerate() {
+            grid[at] = ((bits >> (6 * k)) & 63) as u8;
+        }
+        if fine != 0 {
+            for (k, &at) in FINE_EXTRA.iter().enumerate() {
+                grid[at] = ((fine >> (6 * k)) & 63) as u8;
+            }
+        }
+        Self {
+            grid,
+            fine: fine != 0,
+        }
+    }
+
     /// The shape of [`Shape::to_bits`] and [`Shape::fine_bits`]; `None` for bits that no
     /// shape writes (a level 0 in a non-zero word, bits above the 24 or between the fine
     /// word's levels and its flag, a fine word beside a flat link).
@@ -407,6 +392,99 @@ impl Shape {
 fn bilinear_weights(t: DVec2) -> [f64; 4] {
     let (x, y) = (t.x, t.y);
     [(1.0 - x) * (1.0 - y), x * (1.0 - y), (1.0 - x) * y, x * y]
+}
+
+/// A bilinear piece's value at its unit coordinates `u` from its corner values, in child
+/// order (the one expression [`Shape::value`] and [`Prepared::value`] share).
+#[inline(always)]
+fn bilinear([c00, c10, c01, c11]: [f64; 4], u: DVec2) -> f64 {
+    let bottom = c00 + (c10 - c00) * u.x;
+    let top = c01 + (c11 - c01) * u.x;
+    bottom + (top - bottom) * u.y
+}
+
+/// A [`Shape`] made ready for a leaf's rejection trials: its control values in f64 and its
+/// hats' running level sums, found once a sample rather than once a trial. Its `draw` *is*
+/// [`Shape::draw`] and its `value` gives [`Shape::value`]'s bits.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Prepared {
+    /// The control values (levels / 63) at t = (i/2, j/2), index 3j + i (a coarse shape's
+    /// corners only).
+    values: [f64; 9],
+    /// Running sums of the hats' levels: four corners (coarse), or sixteen (piece, corner)
+    /// pairs (fine); the last is the total.
+    sums: [u32; 16],
+    fine: bool,
+}
+
+impl Prepared {
+    /// Prepares `shape`.
+    #[inline]
+    pub(crate) fn new(shape: Shape) -> Self {
+        let mut values = [0.0; 9];
+        let mut sums = [0u32; 16];
+        let mut total = 0u32;
+        if shape.fine {
+            values = shape.grid.map(|l| f64::from(l) / 63.0);
+            for (n, sum) in sums.iter_mut().enumerate() {
+                let (q, k) = (n >> 2, n & 3);
+                total += u32::from(shape.grid[3 * (q >> 1) + (q & 1) + (k & 1) + 3 * (k >> 1)]);
+                *sum = total;
+            }
+        } else {
+            for (sum, &at) in sums.iter_mut().zip(&CORNERS) {
+                values[at] = f64::from(shape.grid[at]) / 63.0;
+                total += u32::from(shape.grid[at]);
+                *sum = total;
+            }
+        }
+        Self {
+            values,
+            sums,
+            fine: shape.fine,
+        }
+    }
+
+    /// [`Shape::value`].
+    #[inline]
+    pub(crate) fn value(&self, t: DVec2) -> f64 {
+        let v = &self.values;
+        if !self.fine {
+            return bilinear([v[0], v[2], v[6], v[8]], t);
+        }
+        let (i, j) = (usize::from(t.x >= 0.5), usize::from(t.y >= 0.5));
+        let at = 3 * j + i;
+        let u = DVec2::new(2.0 * t.x - i as f64, 2.0 * t.y - j as f64);
+        bilinear([v[at], v[at + 1], v[at + 3], v[at + 4]], u)
+    }
+
+    /// [`Shape::draw`].
+    #[inline]
+    pub(crate) fn draw(&self, xy: [u64; 2], pick: u32) -> DVec2 {
+        const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
+        let pair = |r: u64, high: bool| {
+            let (a, b) = ((r >> 32) as u32, r as u32);
+            f64::from(if high { a.max(b) } else { a.min(b) }) * TO_UNIT
+        };
+        // The first hat whose running sum passes the point (fixed counts, so the compares
+        // unroll).
+        let first = |sums: &[u32]| {
+            let point = (u64::from(pick) * u64::from(sums[sums.len() - 1])) >> 32;
+            sums[..sums.len() - 1]
+                .iter()
+                .map(|&s| usize::from(point >= u64::from(s)))
+                .sum::<usize>()
+        };
+        if !self.fine {
+            let k = first(&self.sums[..4]);
+            return DVec2::new(pair(xy[0], k & 1 == 1), pair(xy[1], k >> 1 == 1));
+        }
+        let n = first(&self.sums);
+        let (q, k) = (n >> 2, n & 3);
+        let u = DVec2::new(pair(xy[0], k & 1 == 1), pair(xy[1], k >> 1 == 1));
+        // (Below ½ in a lower piece; at most ½ + ½·(1 − 2⁻³²) < 1 in an upper one.)
+        DVec2::new(0.5 * (u.x + (q & 1) as f64), 0.5 * (u.y + (q >> 1) as f64))
+    }
 }
 
 /// The largest height of `points` and the floor every level keeps (1/63 of it); `None`

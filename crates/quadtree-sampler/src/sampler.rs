@@ -5,6 +5,7 @@ use crate::chart::ChartPoint;
 use crate::config::BuildConfig;
 use crate::error::BuildError;
 use crate::packed::{PackedTree, Selected};
+use crate::proposal::Prepared;
 use crate::tree::{Quadtree, TreeStats, albedo_of_volume};
 use alloc::sync::Arc;
 use brdf_core::geometry::{above_horizon, luminance, unit_direction_above};
@@ -103,17 +104,21 @@ pub(crate) fn rejection_in_leaf<R: Rng + ?Sized>(
         return None;
     }
     let span = prop.hi - prop.lo;
-    let (shape, flat) = (prop.shape, prop.shape.is_flat());
+    // (A shape's sums and values, once a sample.)
+    let shape = (!prop.shape.is_flat()).then(|| Prepared::new(prop.shape));
     const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
     for trial in 1..=MAX_TRIALS {
         let r = rng.next_u64();
         // A shaped leaf draws its point with density ∝ S and its height under M·S there.
-        let (t, top) = if flat {
-            let uv = DVec2::new((r >> 32) as f64, (r & 0xffff_ffff) as f64) * TO_UNIT;
-            (uv, m)
-        } else {
-            let t = shape.draw([r, rng.next_u64()], rng.next_u32());
-            (t, m * shape.value(t))
+        let (t, top) = match &shape {
+            None => {
+                let uv = DVec2::new((r >> 32) as f64, (r & 0xffff_ffff) as f64) * TO_UNIT;
+                (uv, m)
+            }
+            Some(shape) => {
+                let t = shape.draw([r, rng.next_u64()], rng.next_u32());
+                (t, m * shape.value(t))
+            }
         };
         let q = prop.lo + span * t;
         let z = top * uniform_f64(rng);
