@@ -560,14 +560,21 @@ impl PackedTree {
     }
 
     /// A selected leaf's rejection proposal and bound M (0 for a leaf that holds nothing).
-    #[inline]
+    /// (Always inlined: a sample's first step, whose result the trials keep in registers.)
+    #[inline(always)]
     #[must_use]
     pub fn proposal(&self, leaf: &Selected) -> (Proposal, f64) {
         let n = self.nodes[leaf.index];
         let chart = n.chart();
         let prop = if !chart.needs_stored_box() {
+            // (A flat leaf, the commonest, skips the shape's decoding.)
+            let shape = if n.link & SHAPE_MASK == 0 {
+                Shape::FLAT
+            } else {
+                n.shape()
+            };
             Proposal {
-                shape: n.shape(),
+                shape,
                 ..Proposal::in_chart(&leaf.rect, chart)
             }
         } else {

@@ -646,7 +646,7 @@ impl Proposal {
 
     /// The chart point at box coordinates `q`, or `None` when it falls outside the node or the
     /// disk (an automatic rejection).
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn point(&self, map: DiskMap, rect: &Rect, q: DVec2) -> Option<ChartPoint> {
         match self.chart {

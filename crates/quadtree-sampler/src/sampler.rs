@@ -5,7 +5,7 @@ use crate::chart::ChartPoint;
 use crate::config::BuildConfig;
 use crate::error::BuildError;
 use crate::packed::{PackedTree, Selected};
-use crate::proposal::Prepared;
+use crate::proposal::{Prepared, Proposal};
 use crate::tree::{Quadtree, TreeStats, albedo_of_volume};
 use alloc::sync::Arc;
 use brdf_core::geometry::{above_horizon, luminance, unit_direction_above};
@@ -103,23 +103,41 @@ pub(crate) fn rejection_in_leaf<R: Rng + ?Sized>(
     if m <= 0.0 || m.is_nan() {
         return None;
     }
-    let span = prop.hi - prop.lo;
-    // (A shape's sums and values, once a sample.)
-    let shape = (!prop.shape.is_flat()).then(|| Prepared::new(prop.shape));
     const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
+    // A flat leaf's loop carries no shape; a shaped leaf draws its point with density ∝ S
+    // and its height under M·S there, from its shape's sums and values prepared once.
+    if prop.shape.is_flat() {
+        let uv = |r: u64, _: &mut R| {
+            let uv = DVec2::new((r >> 32) as f64, (r & 0xffff_ffff) as f64) * TO_UNIT;
+            (uv, m)
+        };
+        trials(tree, leaf, &prop, eval, rng, violations, uv)
+    } else {
+        let shape = Prepared::new(prop.shape);
+        let shaped = |r: u64, rng: &mut R| {
+            let t = shape.draw([r, rng.next_u64()], rng.next_u32());
+            (t, m * shape.value(t))
+        };
+        trials(tree, leaf, &prop, eval, rng, violations, shaped)
+    }
+}
+
+/// The trials of [`rejection_in_leaf`], `point` giving a trial's box coordinates and its
+/// height bound from its first 64-bit draw (and the RNG for more).
+#[inline(always)]
+fn trials<R: Rng + ?Sized>(
+    tree: &PackedTree,
+    leaf: &Selected,
+    prop: &Proposal,
+    eval: impl Fn(Vec3) -> Vec3,
+    rng: &mut R,
+    violations: &AtomicU64,
+    point: impl Fn(u64, &mut R) -> (DVec2, f64),
+) -> Option<(ChartPoint, Vec3, Vec3, u32)> {
+    let span = prop.hi - prop.lo;
     for trial in 1..=MAX_TRIALS {
         let r = rng.next_u64();
-        // A shaped leaf draws its point with density ∝ S and its height under M·S there.
-        let (t, top) = match &shape {
-            None => {
-                let uv = DVec2::new((r >> 32) as f64, (r & 0xffff_ffff) as f64) * TO_UNIT;
-                (uv, m)
-            }
-            Some(shape) => {
-                let t = shape.draw([r, rng.next_u64()], rng.next_u32());
-                (t, m * shape.value(t))
-            }
-        };
+        let (t, top) = point(r, rng);
         let q = prop.lo + span * t;
         let z = top * uniform_f64(rng);
         let Some(c) = prop.point(tree.map(), &leaf.rect, q) else {
