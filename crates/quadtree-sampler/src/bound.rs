@@ -100,6 +100,21 @@ fn rim_points(map: DiskMap, rect: &Rect, n: usize) -> Vec<(f64, f64)> {
     }
 }
 
+/// Applies `fill` to every item, in halves side by side when `parallel` (down to 32 items a
+/// part): each item is filled alone, so the results do not depend on the split.
+fn fill_in_halves<T: Send>(items: &mut [T], parallel: bool, fill: &(impl Fn(&mut T) + Sync)) {
+    if items.len() <= 32 || !parallel {
+        items.iter_mut().for_each(fill);
+        return;
+    }
+    let (a, b) = items.split_at_mut(items.len() / 2);
+    join(
+        true,
+        || fill_in_halves(a, true, fill),
+        || fill_in_halves(b, true, fill),
+    );
+}
+
 /// `m` as an f32 no smaller than it (an upper bound stays one).
 pub(crate) fn round_up_f32(m: f64) -> f32 {
     let b = m as f32;
@@ -204,21 +219,14 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         points
     }
 
-    /// Evaluates the height of every point whose height is NaN, in halves side by side when
-    /// the build is parallel (the same values in any order).
+    /// Evaluates the height of every point whose height is NaN (the same values in any
+    /// order, [`fill_in_halves`]).
     fn fill_heights(&self, prop: &Proposal, rect: &Rect, points: &mut [(DVec2, f64)]) {
-        if points.len() <= 32 || self.par_levels == 0 {
-            for p in points.iter_mut().filter(|p| p.1.is_nan()) {
+        fill_in_halves(points, self.par_levels > 0, &|p: &mut (DVec2, f64)| {
+            if p.1.is_nan() {
                 p.1 = self.height(prop, rect, p.0);
             }
-            return;
-        }
-        let (a, b) = points.split_at_mut(points.len() / 2);
-        join(
-            true,
-            || self.fill_heights(prop, rect, a),
-            || self.fill_heights(prop, rect, b),
-        );
+        });
     }
 
     /// The grid's steps per axis for `prop` (see [`Self::grid`]).
@@ -260,16 +268,11 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
             .collect()
     }
 
-    /// f at every direction of `at`, in halves side by side when the build is parallel.
+    /// f at every direction of `at` ([`fill_in_halves`]).
     fn fill_f(&self, at: &mut [(DVec3, f64)]) {
-        if at.len() <= 32 || self.par_levels == 0 {
-            for p in at.iter_mut() {
-                p.1 = self.f(p.0);
-            }
-            return;
-        }
-        let (a, b) = at.split_at_mut(at.len() / 2);
-        join(true, || self.fill_f(a), || self.fill_f(b));
+        fill_in_halves(at, self.par_levels > 0, &|p: &mut (DVec3, f64)| {
+            p.1 = self.f(p.0)
+        });
     }
 
     /// The largest h/S in the band along the node's stretch of the rim (`rim`: what
@@ -391,8 +394,8 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
             let r = over_shape(h, q);
             consider(r, q);
             if fine {
-                let t = prop.unit(q);
-                let k = usize::from(t.x >= 0.5) + 2 * usize::from(t.y >= 0.5);
+                let ([i, j], _) = crate::proposal::quarter(prop.unit(q));
+                let k = i + 2 * j;
                 if r > quarters[k].0 {
                     quarters[k] = (r, q);
                 }

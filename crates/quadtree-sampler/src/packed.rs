@@ -567,14 +567,8 @@ impl PackedTree {
         let n = self.nodes[leaf.index];
         let chart = n.chart();
         let prop = if !chart.needs_stored_box() {
-            // (A flat leaf, the commonest, skips the shape's decoding.)
-            let shape = if n.link & SHAPE_MASK == 0 {
-                Shape::FLAT
-            } else {
-                n.shape()
-            };
             Proposal {
-                shape,
+                shape: n.shape(),
                 ..Proposal::in_chart(&leaf.rect, chart)
             }
         } else {
@@ -647,7 +641,7 @@ impl PackedTree {
                 }
                 // A rim leaf's third word is rebuilt (its table entry); a square or polar
                 // leaf's is 0 or a fine shape's further levels.
-                let fine = if link & CHART_BITS == 0 || link & CHART_BITS == 4 {
+                let fine = if matches!(link & CHART_BITS, 0 | 4) {
                     w[3]
                 } else {
                     0

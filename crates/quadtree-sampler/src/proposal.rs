@@ -149,13 +149,8 @@ impl Shape {
         if !self.fine {
             return (self.levels(), t);
         }
-        let (i, j) = (usize::from(t.x >= 0.5), usize::from(t.y >= 0.5));
-        let at = 3 * j + i;
-        let g = &self.grid;
-        (
-            [g[at], g[at + 1], g[at + 3], g[at + 4]],
-            DVec2::new(2.0 * t.x - i as f64, 2.0 * t.y - j as f64),
-        )
+        let (q, u) = quarter(t);
+        ([0, 1, 2, 3].map(|k| self.grid[piece_corner(q, k)]), u)
     }
 
     /// S at box coordinates `t` ∈ [0, 1]² (bilinear between the control points).
@@ -283,16 +278,10 @@ impl Shape {
             .iter()
             .filter(|p| p.1 > 0.0)
             .map(|&(t, h)| {
-                let fine = Shape {
-                    grid: [1; 9],
-                    fine: true,
-                };
-                let (_, u) = fine.piece(t.clamp(DVec2::ZERO, DVec2::ONE));
-                let (i, j) = (usize::from(t.x >= 0.5), usize::from(t.y >= 0.5));
-                let at = 3 * j + i;
+                let (q, u) = quarter(t.clamp(DVec2::ZERO, DVec2::ONE));
                 let mut w = [0.0; 9];
                 for (k, wk) in bilinear_weights(u).into_iter().enumerate() {
-                    let place = at + (k & 1) + 3 * (k >> 1);
+                    let place = piece_corner(q, k);
                     w[place] = wk / SHARE[place];
                 }
                 (w, h)
@@ -307,8 +296,7 @@ impl Shape {
         if !(high > 0.0 && high.is_finite() && high >= top / 63.0) {
             return Self::FLAT;
         }
-        Self::from_grid(c.map(|v| (v / high * 63.0 + 0.5).clamp(1.0, 63.0) as u8))
-            .unwrap_or(Self::FLAT)
+        Self::from_grid(to_levels(c)).unwrap_or(Self::FLAT)
     }
 
     /// The 24 bits a packed leaf keeps in its link (six a corner, corner 0 lowest); 0 for
@@ -387,6 +375,23 @@ impl Shape {
     }
 }
 
+/// The quarter [i, j] of the box (column, row: 1 for the upper half, a midline going up)
+/// that holds t, and t in that quarter's unit coordinates: a fine [`Shape`]'s piece.
+#[inline(always)]
+pub(crate) fn quarter(t: DVec2) -> ([usize; 2], DVec2) {
+    let (i, j) = (usize::from(t.x >= 0.5), usize::from(t.y >= 0.5));
+    (
+        [i, j],
+        DVec2::new(2.0 * t.x - i as f64, 2.0 * t.y - j as f64),
+    )
+}
+
+/// The place in a fine [`Shape`]'s control grid of quarter [i, j]'s corner k (child order).
+#[inline(always)]
+fn piece_corner([i, j]: [usize; 2], k: usize) -> usize {
+    3 * j + i + (k & 1) + 3 * (k >> 1)
+}
+
 /// The weights of a point t ∈ [0, 1]² on a bilinear piece's corners, in child order.
 #[inline]
 fn bilinear_weights(t: DVec2) -> [f64; 4] {
@@ -427,8 +432,8 @@ impl Prepared {
         if shape.fine {
             values = shape.grid.map(|l| f64::from(l) / 63.0);
             for (n, sum) in sums.iter_mut().enumerate() {
-                let (q, k) = (n >> 2, n & 3);
-                total += u32::from(shape.grid[3 * (q >> 1) + (q & 1) + (k & 1) + 3 * (k >> 1)]);
+                let q = [(n >> 2) & 1, n >> 3];
+                total += u32::from(shape.grid[piece_corner(q, n & 3)]);
                 *sum = total;
             }
         } else {
@@ -452,10 +457,8 @@ impl Prepared {
         if !self.fine {
             return bilinear([v[0], v[2], v[6], v[8]], t);
         }
-        let (i, j) = (usize::from(t.x >= 0.5), usize::from(t.y >= 0.5));
-        let at = 3 * j + i;
-        let u = DVec2::new(2.0 * t.x - i as f64, 2.0 * t.y - j as f64);
-        bilinear([v[at], v[at + 1], v[at + 3], v[at + 4]], u)
+        let (q, u) = quarter(t);
+        bilinear([0, 1, 2, 3].map(|k| v[piece_corner(q, k)]), u)
     }
 
     /// [`Shape::draw`].
@@ -494,9 +497,9 @@ fn heights(points: &[(DVec2, f64)]) -> Option<(f64, f64)> {
     (top > 0.0 && top.is_finite()).then_some((top, top / 63.0))
 }
 
-/// Corner values as levels relative to the highest (rounded to the nearest: + ½, then
+/// Control values as levels relative to the highest (rounded to the nearest: + ½, then
 /// truncated; every value is positive).
-fn to_levels(c: [f64; 4]) -> [u8; 4] {
+fn to_levels<const N: usize>(c: [f64; N]) -> [u8; N] {
     let high = c.iter().copied().fold(0.0, f64::max);
     c.map(|v| (v / high * 63.0 + 0.5).clamp(1.0, 63.0) as u8)
 }

@@ -86,11 +86,12 @@ pub struct LeafSample {
 /// grid model): a point uniform in the leaf's proposal box, a height uniform in [0, M)
 /// (for a shaped leaf, the point with density ∝ S and the height in [0, M·S) there:
 /// [`crate::proposal::Shape`]); accept when the height is below Y(f)·(chart Jacobian).
-/// Returns the accepted chart point,
-/// the f32 direction a caller sees (the point's unit f64 direction, rounded), f there (RGB, evaluated once per trial at exactly
-/// that vector) and the trials; `None` after [`MAX_TRIALS`] or for a leaf that holds
-/// nothing. Every f > M (M·S) met is counted in `violations`. One 64-bit draw places the point
-/// (32 bits per axis: 2⁻³² of the leaf's side) and one more the height.
+/// Returns the accepted chart point, the f32 direction a caller sees (the point's unit f64
+/// direction, rounded), f there (RGB, evaluated once per trial at exactly that vector) and
+/// the trials; `None` after [`MAX_TRIALS`] or for a leaf that holds nothing. Every f > M
+/// (M·S) met is counted in `violations`. One 64-bit draw places a flat leaf's point (32 bits
+/// per axis: 2⁻³² of the leaf's side), that draw, one more and a 32-bit one a shaped leaf's
+/// ([`crate::proposal::Shape::draw`]), and one more 64-bit draw the height.
 pub(crate) fn rejection_in_leaf<R: Rng + ?Sized>(
     tree: &PackedTree,
     leaf: &Selected,
