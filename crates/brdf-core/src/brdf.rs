@@ -222,6 +222,17 @@ pub trait Brdf: Send + Sync + fmt::Debug {
         PeakHints::mirror_and_normal(wi)
     }
 
+    /// cos θc of a crease of f_r(wi, ·): a ring of outgoing directions at polar angle θc
+    /// across which f_r is continuous but its derivative in θo jumps (Oren–Nayar's
+    /// max(θi, θo) and min(θi, θo) put one at θo = θi). Integration cuts its cells there
+    /// (on the concentric map, whose rings are squares) instead of refining toward the ring,
+    /// which a rule converges on only as fast as the cells shrink. A hint for speed, not for
+    /// correctness: `None` (the default) is always right.
+    fn crease_cosine(&self, wi: Vec3) -> Option<f64> {
+        let _ = wi;
+        None
+    }
+
     /// Whether [`Brdf::sample_continuous`] is a model-specific importance sampler. When false,
     /// the continuous part is sampled cosine-weighted (the baseline of MODELS.md).
     fn has_analytic_sampler(&self) -> bool {
@@ -365,6 +376,10 @@ macro_rules! forward_brdf {
             #[inline]
             fn peak_hints(&self, wi: Vec3) -> PeakHints {
                 (**self).peak_hints(wi)
+            }
+            #[inline]
+            fn crease_cosine(&self, wi: Vec3) -> Option<f64> {
+                (**self).crease_cosine(wi)
             }
             #[inline]
             fn has_analytic_sampler(&self) -> bool {

@@ -1079,6 +1079,60 @@ mod symmetry {
     }
 }
 
+/// `Brdf::crease_cosine`: where a model declares a crease, f_r's slope in θo jumps there.
+mod creases {
+    use super::*;
+
+    /// The jump of the one-sided slopes of f_r(wi, ·) in θo at θ (azimuth φ, step h), and the
+    /// larger change of slope within either side (what smooth curvature and f32 rounding give).
+    fn slopes(b: &dyn Brdf, wi: Vec3, theta: f64, phi: f64) -> (f64, f64) {
+        let h = 2e-3f64;
+        let g = |t: f64| f64::from(luminance(b.eval(wi, dir((theta + t).to_degrees(), phi))));
+        let (m2, m1, z, p1, p2) = (g(-2.0 * h), g(-h), g(0.0), g(h), g(2.0 * h));
+        let (sl2, sl, sr, sr2) = ((m1 - m2) / h, (z - m1) / h, (p1 - z) / h, (p2 - p1) / h);
+        ((sr - sl).abs(), (sl - sl2).abs().max((sr2 - sr).abs()))
+    }
+
+    /// Every declared crease is one: at azimuths 0° and 180° from wi the slope jumps by more
+    /// than ten times its change within either side. The check can fail: 0.15 rad away from
+    /// the crease it finds none. And the declaration is made (Oren–Nayar's, at θo = θi).
+    #[test]
+    fn every_declared_crease_is_a_slope_jump() {
+        let mut declared = 0;
+        for info in registry::models().iter().filter(|m| !m.measured) {
+            let b = build(info.name, &[]);
+            for theta_i in [20.0, 50.0, 75.0] {
+                let wi = dir(theta_i, 0.0);
+                let Some(c) = b.crease_cosine(wi) else {
+                    continue;
+                };
+                declared += 1;
+                let tc = c.acos();
+                assert!(
+                    (tc.to_degrees() - theta_i).abs() < 1e-3,
+                    "{}: {tc}",
+                    info.name
+                );
+                for phi in [0.0, 180.0] {
+                    let (jump, smooth) = slopes(&*b, wi, tc, phi);
+                    assert!(
+                        jump > 10.0 * smooth,
+                        "{} θi {theta_i} φ {phi}: jump {jump:e}, smooth {smooth:e}",
+                        info.name
+                    );
+                    let (jump, smooth) = slopes(&*b, wi, tc - 0.15, phi);
+                    assert!(
+                        jump < 3.0 * smooth.max(1e-4),
+                        "{} θi {theta_i} φ {phi} off the crease: jump {jump:e}, smooth {smooth:e}",
+                        info.name
+                    );
+                }
+            }
+        }
+        assert_eq!(declared, 3, "Oren–Nayar declares its crease at each θi");
+    }
+}
+
 /// The grazing floor (`geometry::GRAZING_COS`): every model at every parameter endpoint is
 /// finite down to the smallest positive f32 z, and below the floor it is the floor's value.
 mod grazing {

@@ -6,7 +6,7 @@
 use crate::bound::{Known, RimProbe};
 use crate::chart::{Chart, Rect};
 use crate::config::{BuildConfig, IntegrationRule};
-use crate::integrate::{Cell, Peak, UnitRule, refine_cells};
+use crate::integrate::{Cell, Domain, Peak, UnitRule, refine_cells};
 use crate::proposal::{Proposal, Shape};
 use alloc::vec::Vec;
 use brdf_core::{Brdf, DiskMap};
@@ -69,6 +69,8 @@ pub(crate) struct Context<'a, B: Brdf + ?Sized> {
     pub(crate) wi: Vec3,
     pub(crate) config: BuildConfig,
     pub(crate) rule: UnitRule,
+    /// The integration's domain: the map and f_r's crease on it, if any.
+    pub(crate) domain: Domain,
     pub(crate) hints: Vec<DVec3>,
     /// Absolute floor of every node's integration tolerance: the relative tolerance times an
     /// estimate of the total volume (a node's error below it cannot be seen by any test).
@@ -80,7 +82,8 @@ pub(crate) struct Context<'a, B: Brdf + ?Sized> {
     /// f_r evaluations spent so far (see [`BuildConfig::evaluation_budget`]).
     pub(crate) spent: AtomicU64,
     /// Evaluations per rule application (n² points; twice that where the angle chart
-    /// splits a node into pieces, counted as its mean).
+    /// splits a node into pieces, counted as its mean; the pieces a crease cuts are not
+    /// counted: they are the few cells along one ring of each level).
     pub(crate) per_application: u64,
 }
 
@@ -92,6 +95,10 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             IntegrationRule::Midpoint { n } => UnitRule::midpoint(usize::from(n)),
             IntegrationRule::GaussLegendre { n } => UnitRule::new(usize::from(n)),
         };
+        let domain = Domain::new(
+            config.map,
+            brdf.crease_cosine(brdf_core::geometry::lift_incident(wi)),
+        );
         let hints = brdf
             .peak_hints(brdf_core::geometry::lift_incident(wi))
             .as_slice()
@@ -103,6 +110,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             wi,
             config,
             rule,
+            domain,
             hints,
             tol_floor: 0.0,
             // Every level: the work of a sharp lobe sits in one quadrant after another, so a
@@ -126,10 +134,10 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         };
         let root = Rect::square(-1.0, -1.0, 2.0);
         let f = |w: DVec3| ctx.f(w);
-        let mut cell = Cell::once(config.map, &root, &ctx.rule, &f);
+        let mut cell = Cell::once(ctx.domain, &root, &ctx.rule, &f);
         let tol = 1e-3 * cell.value.abs();
         let estimate = refine_cells(
-            config.map,
+            ctx.domain,
             &root,
             &mut cell,
             &ctx.rule,
@@ -169,11 +177,11 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         // One application of the rule sets the tolerance and is the refinement's start (the
         // node's points are integrated once, not twice; and not at all when the parent's
         // integration already applied the rule here).
-        let mut cell = cells.unwrap_or_else(|| Cell::once(map, rect, &self.rule, &f));
+        let mut cell = cells.unwrap_or_else(|| Cell::once(self.domain, rect, &self.rule, &f));
         let mut peak = cell.peak;
         let tol = (self.config.integration_tolerance * cell.value.abs()).max(self.tol_floor);
         let v1 = refine_cells(
-            map,
+            self.domain,
             rect,
             &mut cell,
             &self.rule,

@@ -127,9 +127,88 @@ pub fn integrate_once_peak(
     f: &impl Fn(DVec3) -> f64,
     peak: &mut Peak,
 ) -> f64 {
-    match map {
-        DiskMap::Orthographic => integrate_angle(rect, rule, f, peak),
-        DiskMap::Concentric => integrate_sine(rect, rule, f, peak),
+    integrate_in(Domain::from(map), rect, rule, f, peak)
+}
+
+/// What a build integrates over: the map's square and, on the concentric map, the crease
+/// of f_r(wi, ·) that [`Brdf::crease_cosine`](brdf_core::Brdf::crease_cosine) reports, as
+/// the half-side r_c = sin θc of the square ring the map makes of it (the lines |x| = r_c
+/// and |y| = r_c).
+///
+/// A rule applied across a crease converges only as fast as the cells shrink toward it:
+/// Oren–Nayar at θi = 89° (crease at θo = θi) spent nine tenths of its build refining cells
+/// that straddle that ring, down to the integration depth. Split there, each piece is
+/// smooth and one application is as good as anywhere else.
+/// On the orthographic map the ring is a circle, which no cell edge follows; it has no
+/// crease here and integrates as before.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Domain {
+    /// The disk map the square is the domain of.
+    pub map: DiskMap,
+    /// r_c ∈ (0, 1) on the concentric map; `None` without a crease.
+    pub crease: Option<f64>,
+}
+
+impl Domain {
+    /// The domain of `map` for an integrand creased at cos θo = `crease_cosine`.
+    pub fn new(map: DiskMap, crease_cosine: Option<f64>) -> Self {
+        let crease = crease_cosine
+            .filter(|_| map == DiskMap::Concentric)
+            .map(|c| m::sqrt(((1.0 - c) * (1.0 + c)).max(0.0)))
+            .filter(|r| *r > 0.0 && *r < 1.0);
+        Self { map, crease }
+    }
+}
+
+impl From<DiskMap> for Domain {
+    fn from(map: DiskMap) -> Self {
+        Self { map, crease: None }
+    }
+}
+
+/// [`integrate_once_peak`] over a [`Domain`]: on the concentric map with a crease, the rule
+/// is applied to each piece of `rect` that the crease lines cut (each piece still split
+/// along the map's own diagonal kinks by [`integrate_sine`]).
+pub(crate) fn integrate_in(
+    dom: Domain,
+    rect: &Rect,
+    rule: &UnitRule,
+    f: &impl Fn(DVec3) -> f64,
+    peak: &mut Peak,
+) -> f64 {
+    match (dom.map, dom.crease) {
+        (DiskMap::Orthographic, _) => integrate_angle(rect, rule, f, peak),
+        (DiskMap::Concentric, None) => integrate_sine(rect, rule, f, peak),
+        (DiskMap::Concentric, Some(r)) => {
+            // The cut positions along one axis: the ends and the crease lines strictly inside.
+            let cuts = |lo: f64, hi: f64| {
+                let mut c = [lo, hi, hi, hi];
+                let mut n = 1;
+                for x in [-r, r] {
+                    if x > lo && x < hi {
+                        c[n] = x;
+                        n += 1;
+                    }
+                }
+                c[n] = hi;
+                (c, n)
+            };
+            let ((xs, nx), (ys, ny)) = (cuts(rect.min.x, rect.max.x), cuts(rect.min.y, rect.max.y));
+            if nx == 1 && ny == 1 {
+                return integrate_sine(rect, rule, f, peak);
+            }
+            let mut total = 0.0;
+            for i in 0..nx {
+                for j in 0..ny {
+                    let piece = Rect {
+                        min: DVec2::new(xs[i], ys[j]),
+                        max: DVec2::new(xs[i + 1], ys[j + 1]),
+                    };
+                    total += integrate_sine(&piece, rule, f, peak);
+                }
+            }
+            total
+        }
     }
 }
 
@@ -289,9 +368,9 @@ pub(crate) struct Cell {
 
 impl Cell {
     /// One application of the rule over `rect`.
-    pub fn once(map: DiskMap, rect: &Rect, rule: &UnitRule, f: &impl Fn(DVec3) -> f64) -> Self {
+    pub fn once(dom: Domain, rect: &Rect, rule: &UnitRule, f: &impl Fn(DVec3) -> f64) -> Self {
         let mut peak = Peak::default();
-        let value = integrate_once_peak(map, rect, rule, f, &mut peak);
+        let value = integrate_in(dom, rect, rule, f, &mut peak);
         Self {
             value,
             peak,
@@ -366,7 +445,7 @@ pub(crate) fn join<A: Send, B: Send>(
 /// the result does not depend on it.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn refine_cells(
-    map: DiskMap,
+    dom: Domain,
     rect: &Rect,
     cell: &mut Cell,
     rule: &UnitRule,
@@ -380,7 +459,7 @@ pub(crate) fn refine_cells(
     let coarse = cell.value;
     let cells = cell
         .quads
-        .get_or_insert_with(|| alloc::boxed::Box::new(quads.map(|q| Cell::once(map, &q, rule, f))));
+        .get_or_insert_with(|| alloc::boxed::Box::new(quads.map(|q| Cell::once(dom, &q, rule, f))));
     for c in cells.iter() {
         peak.merge(&c.peak);
     }
@@ -392,7 +471,7 @@ pub(crate) fn refine_cells(
     let next = par_levels.saturating_sub(1);
     let one = |q: &Rect, c: &mut Cell| {
         let mut local = Peak::default();
-        let v = refine_cells(map, q, c, rule, 0.5 * tol, depth - 1, f, &mut local, next);
+        let v = refine_cells(dom, q, c, rule, 0.5 * tol, depth - 1, f, &mut local, next);
         (v, local)
     };
     let [c0, c1, c2, c3] = &mut **cells;
@@ -420,31 +499,31 @@ mod tests {
     /// ∫ f over `rect` ∩ disk with f given per direction (the square measure dx dy), by the map's
     /// chart rule (one application, no adaptivity). `f` returns f_r's luminance.
     fn integrate_once(
-        map: DiskMap,
+        dom: impl Into<Domain>,
         rect: &Rect,
         rule: &UnitRule,
         f: &impl Fn(DVec3) -> f64,
     ) -> f64 {
-        integrate_once_peak(map, rect, rule, f, &mut Peak::default())
+        integrate_in(dom.into(), rect, rule, f, &mut Peak::default())
     }
 
     /// Adaptive ∫ f over `rect` ∩ disk: compares one application of the rule with the sum over
     /// the four quadrants and recurses where they differ by more than `tol` (each quadrant with
     /// half the tolerance), at most `depth` levels. Returns the refined estimate.
     fn integrate_adaptive(
-        map: DiskMap,
+        dom: impl Into<Domain>,
         rect: &Rect,
         rule: &UnitRule,
         tol: f64,
         depth: u32,
         f: &impl Fn(DVec3) -> f64,
     ) -> f64 {
-        integrate_adaptive_peak(map, rect, rule, tol, depth, f, &mut Peak::default())
+        integrate_adaptive_peak(dom.into(), rect, rule, tol, depth, f, &mut Peak::default())
     }
 
     /// `integrate_adaptive`, also recording the largest values met in `peak`.
     fn integrate_adaptive_peak(
-        map: DiskMap,
+        dom: Domain,
         rect: &Rect,
         rule: &UnitRule,
         tol: f64,
@@ -452,15 +531,15 @@ mod tests {
         f: &impl Fn(DVec3) -> f64,
         peak: &mut Peak,
     ) -> f64 {
-        let coarse = integrate_once_peak(map, rect, rule, f, peak);
-        refine(map, rect, coarse, rule, tol, depth, f, peak)
+        let coarse = integrate_in(dom, rect, rule, f, peak);
+        refine(dom, rect, coarse, rule, tol, depth, f, peak)
     }
 
     /// The refinement of `integrate_adaptive_peak` from an already computed one-application
     /// estimate `coarse` of `rect` (for callers that needed it first, to set `tol`).
     #[allow(clippy::too_many_arguments)]
     fn refine(
-        map: DiskMap,
+        dom: Domain,
         rect: &Rect,
         coarse: f64,
         rule: &UnitRule,
@@ -470,7 +549,7 @@ mod tests {
         peak: &mut Peak,
     ) -> f64 {
         let quads = rect.quadrants();
-        let parts = quads.map(|q| integrate_once_peak(map, &q, rule, f, peak));
+        let parts = quads.map(|q| integrate_in(dom, &q, rule, f, peak));
         let fine: f64 = parts.iter().sum();
         if depth == 0 || (fine - coarse).abs() <= tol {
             return fine;
@@ -478,7 +557,7 @@ mod tests {
         quads
             .iter()
             .zip(parts)
-            .map(|(q, c)| refine(map, q, c, rule, 0.5 * tol, depth - 1, f, peak))
+            .map(|(q, c)| refine(dom, q, c, rule, 0.5 * tol, depth - 1, f, peak))
             .sum()
     }
 
@@ -561,6 +640,43 @@ mod tests {
         assert!((got - want).abs() < 1e-6 * want, "{got} vs {want}");
     }
 
+    /// A crease integrates exactly and cheaply once the cells are cut along it: |z − c| over
+    /// the concentric square is (4/π)·2π(1/3 − c/2 + c³/3). Cut, the adaptive rule meets a
+    /// tolerance of 1e-11 with a handful of cells; uncut (the negative control), the same
+    /// tolerance takes over twenty times as many and is still less accurate.
+    #[test]
+    fn a_declared_crease_is_integrated_along_its_ring() {
+        let rule = UnitRule::new(6);
+        let root = Rect::square(-1.0, -1.0, 2.0);
+        for c in [0.3, 0.6, 0.017_452_406_437_283_5] {
+            let f = |w: DVec3| (w.z - c).abs();
+            let want = 8.0 * (1.0 / 3.0 - 0.5 * c + c * c * c / 3.0);
+            let mut err_cells = [(0.0, 0); 2];
+            for (k, dom) in [
+                Domain::new(DiskMap::Concentric, Some(c)),
+                DiskMap::Concentric.into(),
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                let mut cell = Cell::once(dom, &root, &rule, &f);
+                let mut peak = Peak::default();
+                let got = refine_cells(dom, &root, &mut cell, &rule, 1e-11, 12, &f, &mut peak, 0);
+                err_cells[k] = ((got - want).abs() / want, cell.count());
+            }
+            let [(err, cells), (plain_err, plain_cells)] = err_cells;
+            assert!(err < 1e-10, "c {c}: cut {err:e}");
+            assert!(
+                plain_cells > 20 * cells && plain_err > err,
+                "c {c}: cut {cells} cells ({err:e}), uncut {plain_cells} ({plain_err:e})"
+            );
+        }
+        // Only the concentric map's rings are squares; the unit cosine has no ring.
+        assert_eq!(Domain::new(DiskMap::Orthographic, Some(0.5)).crease, None);
+        assert_eq!(Domain::new(DiskMap::Concentric, Some(1.0)).crease, None);
+        assert_eq!(Domain::new(DiskMap::Concentric, None).crease, None);
+    }
+
     /// The build's memoised integration is the plain one, bit for bit: from a fresh cell,
     /// again over the cells it kept (serial or parallel), and in each quadrant continuing
     /// from the parent's cells with the child's own tolerance (what a split hands down).
@@ -572,7 +688,12 @@ mod tests {
         let c = DVec3::new(0.5, -0.3, 0.812_403_840_463_596).normalize();
         let f = |w: DVec3| m::pow(w.dot(c).max(0.0), 3000.0).max(0.05);
         let root = Rect::square(-1.0, -1.0, 2.0);
-        for map in [DiskMap::Orthographic, DiskMap::Concentric] {
+        let creased = Domain::new(DiskMap::Concentric, Some(0.6));
+        for map in [
+            DiskMap::Orthographic.into(),
+            DiskMap::Concentric.into(),
+            creased,
+        ] {
             let (tol, depth) = (1e-7, 12);
             let mut want_peak = Peak::default();
             let want = integrate_adaptive_peak(map, &root, &rule, tol, depth, &f, &mut want_peak);

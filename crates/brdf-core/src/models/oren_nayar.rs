@@ -1,7 +1,9 @@
 use crate::Symmetry;
 use crate::brdf::{Brdf, BrdfSample, PeakHints};
 use crate::error::ParamError;
-use crate::geometry::{above_horizon, cos_delta_phi64, mirror, upper_pair};
+use crate::geometry::{
+    above_horizon, cos_delta_phi64, lift_to_grazing_floor, mirror, normalize_f64, upper_pair,
+};
 use crate::math as m;
 use crate::param::{ParamSet, ParamSpec, ParamValue};
 use crate::warp::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
@@ -114,6 +116,17 @@ impl Brdf for OrenNayar {
         h.push(Vec3::Z);
         h.push(mirror(wi));
         h
+    }
+
+    /// θo = θi, where α = max(θi, θo) and β = min(θi, θo) exchange: sin α·tan β has the
+    /// slopes sin θi/cos²θi and sin θi on its two sides. The cosine is the one
+    /// [`Brdf::eval`] compares with (the unit, lifted wi's z).
+    fn crease_cosine(&self, wi: Vec3) -> Option<f64> {
+        above_horizon(wi).then(|| {
+            lift_to_grazing_floor(normalize_f64(wi.as_dvec3()))
+                .z
+                .min(1.0)
+        })
     }
 
     fn has_analytic_sampler(&self) -> bool {
