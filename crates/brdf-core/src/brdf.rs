@@ -224,10 +224,10 @@ pub trait Brdf: Send + Sync + fmt::Debug {
 
     /// cos θc of a crease of f_r(wi, ·): a ring of outgoing directions at polar angle θc
     /// across which f_r is continuous but its derivative in θo jumps (Oren–Nayar's
-    /// max(θi, θo) and min(θi, θo) put one at θo = θi). Integration cuts its cells there
-    /// (on the concentric map, whose rings are squares) instead of refining toward the ring,
-    /// which a rule converges on only as fast as the cells shrink. A hint for speed, not for
-    /// correctness: `None` (the default) is always right.
+    /// max(θi, θo) and min(θi, θo) put one at θo = θi). The quadtree's integration cuts its
+    /// cells along that ring instead of refining toward it, which a rule converges on only
+    /// as fast as the cells shrink. A hint for speed, not for correctness: `None` (the
+    /// default) is always right.
     fn crease_cosine(&self, wi: Vec3) -> Option<f64> {
         let _ = wi;
         None
