@@ -135,9 +135,10 @@ pub fn integrate_once_peak(
 /// r_c = sin θc on the disk: a circle on the orthographic map, the square ring |x| = r_c,
 /// |y| = r_c on the concentric one.
 ///
-/// A rule applied across a crease converges only as fast as the cells shrink toward it:
-/// Oren–Nayar at θi = 89° (crease at θo = θi) spent nine tenths of its build refining cells
-/// that straddle that ring, down to the integration depth. Cut there, each piece is smooth
+/// A rule applied across a crease converges only as fast as the cells shrink toward it: the
+/// target-1.25 tree of Oren–Nayar at θi = 89° (crease at θo = θi), concentric, took 142 ms,
+/// nearly all of it refining cells that straddle that ring, and takes 12 ms cut along it
+/// (same nodes and E\[T\]). Cut there, each piece is smooth
 /// and one application is as good as anywhere else: the concentric node is cut into
 /// rectangles along the ring's sides; the orthographic node's outer (a) integral is cut where
 /// the circle crosses its horizontal edges and, with the rim's u² remap, where it turns
