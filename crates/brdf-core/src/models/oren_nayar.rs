@@ -81,7 +81,7 @@ impl Brdf for OrenNayar {
             return Vec3::ZERO;
         };
         let (ci, co) = (wi.z.min(1.0), wo.z.min(1.0));
-        let (ti, to) = (m::acos(ci), m::acos(co));
+        let (ti, to) = (m::acos_nonnegative(ci), m::acos_nonnegative(co));
         let (alpha, beta) = (ti.max(to), ti.min(to));
         // sin β, tan β and sin α from cosines (no tan of an angle near π/2); 1 − c² as
         // (1 − c)(1 + c), which does not cancel for c near 1.
