@@ -498,9 +498,18 @@ pub(crate) fn refine_cells(
 ) -> f64 {
     let quads = rect.quadrants();
     let coarse = cell.value;
-    let cells = cell
-        .quads
-        .get_or_insert_with(|| alloc::boxed::Box::new(quads.map(|q| Cell::once(dom, &q, rule, f))));
+    let par = par_levels > 0;
+    // The four applications side by side too: they are the recursion's critical path, one
+    // level after another down a lobe.
+    let cells = cell.quads.get_or_insert_with(|| {
+        let once = |k: usize| Cell::once(dom, &quads[k], rule, f);
+        let ((a, b), (c, d)) = join(
+            par,
+            || join(par, || once(0), || once(1)),
+            || join(par, || once(2), || once(3)),
+        );
+        alloc::boxed::Box::new([a, b, c, d])
+    });
     for c in cells.iter() {
         peak.merge(&c.peak);
     }
@@ -508,7 +517,6 @@ pub(crate) fn refine_cells(
     if depth == 0 || (fine - coarse).abs() <= tol {
         return fine;
     }
-    let par = par_levels > 0;
     let next = par_levels.saturating_sub(1);
     let one = |q: &Rect, c: &mut Cell| {
         let mut local = Peak::default();
