@@ -64,6 +64,26 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
 const LN2_HI: f64 = 0.693_147_180_369_123_8;
 const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
 
+/// The range reduction of the table-free exponentials: x clamped below at −708 (NaN taken as
+/// −708), and k = round(x·log₂e), as an f64 and as the integer whose shift by 52 is 2^k's
+/// exponent bits ([`times_pow2`]).
+#[inline(always)]
+fn ln2_multiple(x: f64) -> (f64, f64, i64) {
+    // 1.5·2^52: adding it rounds x·log2(e) to an integer held in the low mantissa bits.
+    const SHIFT: f64 = 6_755_399_441_055_744.0;
+    let x = x.max(-708.0);
+    let kf = x * core::f64::consts::LOG2_E + SHIFT;
+    // The low bits of kf are k in two's complement; shifted up by 52 they are its exponent.
+    (x, kf - SHIFT, kf.to_bits() as i64)
+}
+
+/// p·2^k for the k of [`ln2_multiple`], by adding k to p's exponent bits (no overflow or
+/// underflow for the results of x ∈ [−708, 0]).
+#[inline(always)]
+fn times_pow2(p: f64, k: i64) -> f64 {
+    f64::from_bits(p.to_bits().wrapping_add((k << 52) as u64))
+}
+
 /// e^x for x ≤ 0, in plain arithmetic: no table, no branch and no call, so a loop of them
 /// vectorises (the HTSG series sums tens of such terms per evaluation).
 ///
@@ -75,13 +95,7 @@ const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
 #[inline(always)]
 #[must_use]
 pub fn exp_nonpositive(x: f64) -> f64 {
-    // 1.5·2^52: adding it rounds x·log2(e) to an integer held in the low mantissa bits.
-    const SHIFT: f64 = 6_755_399_441_055_744.0;
-    let x = x.max(-708.0);
-    let kf = x * core::f64::consts::LOG2_E + SHIFT;
-    let kd = kf - SHIFT;
-    // The low bits of kf are k in two's complement; shifted up by 52 they are its exponent.
-    let k = kf.to_bits() as i64;
+    let (x, kd, k) = ln2_multiple(x);
     let r = (x - kd * LN2_HI) - kd * LN2_LO;
     let (r2, r4) = (r * r, r * r * r * r);
     let c = |n0: f64, n1: f64| n0 + r * n1;
@@ -90,7 +104,7 @@ pub fn exp_nonpositive(x: f64) -> f64 {
     let q811 = c(1.0 / 40_320.0, 1.0 / 362_880.0) + r2 * c(1.0 / 3_628_800.0, 1.0 / 39_916_800.0);
     let q1213 = c(1.0 / 479_001_600.0, 1.0 / 6_227_020_800.0);
     let p = (q03 + r4 * q47) + (r4 * r4) * (q811 + r4 * q1213);
-    f64::from_bits(p.to_bits().wrapping_add((k << 52) as u64))
+    times_pow2(p, k)
 }
 
 /// [`exp_nonpositive`] to a relative 1.3·10⁻¹² instead of a few ulp, for sums whose terms
@@ -116,16 +130,12 @@ pub fn exp_nonpositive_short(x: f64) -> f64 {
         0.000_199_158_669_267_826_82,
         2.487_616_402_262_597e-5,
     ];
-    const SHIFT: f64 = 6_755_399_441_055_744.0;
-    let x = x.max(-708.0);
-    let kf = x * core::f64::consts::LOG2_E + SHIFT;
-    let kd = kf - SHIFT;
-    let k = kf.to_bits() as i64;
+    let (x, kd, k) = ln2_multiple(x);
     let r = x - kd * core::f64::consts::LN_2;
     let (r2, r4) = (r * r, r * r * r * r);
     let c = |i: usize| C[i] + r * C[i + 1];
     let p = (c(0) + r2 * c(2)) + r4 * (c(4) + r2 * c(6)) + (r4 * r4) * C[8];
-    f64::from_bits(p.to_bits().wrapping_add((k << 52) as u64))
+    times_pow2(p, k)
 }
 
 /// acos c for c ∈ [0, 1] (clamped there; NaN is taken as 1), in plain arithmetic: no call, no
