@@ -95,12 +95,11 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             IntegrationRule::Midpoint { n } => UnitRule::midpoint(usize::from(n)),
             IntegrationRule::GaussLegendre { n } => UnitRule::new(usize::from(n)),
         };
-        let domain = Domain::new(
-            config.map,
-            brdf.crease_cosine(brdf_core::geometry::lift_incident(wi)),
-        );
+        // The model's hints, for wi lifted to the grazing floor as its evaluation lifts it.
+        let lifted = brdf_core::geometry::lift_incident(wi);
+        let domain = Domain::new(config.map, brdf.crease_cosine(lifted));
         let hints = brdf
-            .peak_hints(brdf_core::geometry::lift_incident(wi))
+            .peak_hints(lifted)
             .as_slice()
             .iter()
             .map(|h| h.as_dvec3().normalize())
