@@ -152,10 +152,12 @@ pub(crate) struct Domain {
 }
 
 impl Domain {
-    /// The domain of `map` for an integrand creased at cos θo = `crease_cosine`.
+    /// The domain of `map` for an integrand creased at cos θo = `crease_cosine`; a cosine
+    /// outside (0, 1) (or NaN) names no ring of the upper hemisphere's interior: no crease.
     pub fn new(map: DiskMap, crease_cosine: Option<f64>) -> Self {
         let crease = crease_cosine
-            .map(|c| m::sqrt(((1.0 - c) * (1.0 + c)).max(0.0)))
+            .filter(|c| *c > 0.0 && *c < 1.0)
+            .map(|c| m::sqrt((1.0 - c) * (1.0 + c)))
             .filter(|r| *r > 0.0 && *r < 1.0);
         Self { map, crease }
     }
@@ -739,6 +741,14 @@ mod tests {
         assert_eq!(Domain::new(DiskMap::Orthographic, Some(1.0)).crease, None);
         assert_eq!(Domain::new(DiskMap::Concentric, Some(1.0)).crease, None);
         assert_eq!(Domain::new(DiskMap::Concentric, None).crease, None);
+        // Nor the horizon, a ring below it, or no number at all.
+        for c in [0.0, -0.5, f64::NAN, f64::INFINITY] {
+            assert_eq!(
+                Domain::new(DiskMap::Orthographic, Some(c)).crease,
+                None,
+                "{c}"
+            );
+        }
     }
 
     /// The build's memoised integration is the plain one, bit for bit: from a fresh cell,
