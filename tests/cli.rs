@@ -369,6 +369,7 @@ fn sample_writes_records_whose_pdf_brdf_pdf_agrees_with() {
                 "sample_seconds",
                 "mean_trials",
                 "bound_violations",
+                "budget_exhausted",
             ] {
                 assert!(
                     summary.get(key).is_some(),
@@ -417,6 +418,11 @@ fn sample_writes_records_whose_pdf_brdf_pdf_agrees_with() {
             }
             if mode == "rejection" {
                 assert_eq!(summary["bound_violations"], 0);
+                assert_eq!(summary["budget_exhausted"], false);
+                assert!(
+                    !String::from_utf8_lossy(&o.stderr).contains("node budget"),
+                    "{mode}: a budget warning for a build that stayed within it"
+                );
                 assert!(summary["nodes"].as_u64().unwrap() > 1);
             } else if mode == "warp" {
                 assert!(summary["nodes"].as_u64().unwrap() > 1);

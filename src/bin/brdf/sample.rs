@@ -294,6 +294,21 @@ pub(crate) fn run_sample(
             obj.insert("leaves".into(), json!(stats.leaves));
             obj.insert("max_depth".into(), json!(stats.max_depth));
             obj.insert("bytes".into(), json!(stats.bytes));
+            obj.insert("budget_exhausted".into(), json!(stats.budget_exhausted));
+            if stats.budget_exhausted {
+                // stdout stays the JSON scripts read; the shortfall is said on stderr too.
+                eprintln!(
+                    "brdf: warning: the node budget stopped the build at {} nodes{}",
+                    stats.nodes,
+                    match args.options.target_trials {
+                        Some(t) if stats.expected_trials > t => format!(
+                            ", short of --target-trials {t}: E[T] = {:.4}",
+                            stats.expected_trials
+                        ),
+                        _ => String::new(),
+                    }
+                );
+            }
             match violations {
                 Some(v) => {
                     obj.insert("expected_trials".into(), json!(stats.expected_trials));
@@ -319,6 +334,7 @@ pub(crate) fn run_sample(
             obj.insert("bytes".into(), json!(b.bytes()));
             obj.insert("leaves".into(), Value::Null);
             obj.insert("max_depth".into(), Value::Null);
+            obj.insert("budget_exhausted".into(), Value::Null);
             obj.insert("expected_trials".into(), Value::Null);
             obj.insert(
                 "bound_violations".into(),
@@ -338,6 +354,7 @@ pub(crate) fn run_sample(
                 "expected_trials",
                 "bytes",
                 "bound_violations",
+                "budget_exhausted",
             ] {
                 obj.insert(k.into(), Value::Null);
             }
