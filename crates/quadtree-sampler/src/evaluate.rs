@@ -160,6 +160,21 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
     /// Evaluates the node `rect`, continuing from the integration cells `cells` its parent
     /// left for it; returns its own cells for its children.
     pub(crate) fn evaluate(&self, rect: &Rect, cells: Option<Cell>) -> (Evaluation, Option<Cell>) {
+        let mut spent = 0;
+        let r = self.evaluate_counted(rect, cells, &mut spent);
+        self.spend(spent);
+        r
+    }
+
+    /// [`Context::evaluate`], adding the evaluations it spends to `spent` instead of the
+    /// build's count (a speculative evaluation is counted only when the build adopts it, so
+    /// the budget's verdicts do not depend on what was speculated).
+    pub(crate) fn evaluate_counted(
+        &self,
+        rect: &Rect,
+        cells: Option<Cell>,
+        spent: &mut u64,
+    ) -> (Evaluation, Option<Cell>) {
         let map = self.config.map;
         let square = Proposal::in_chart(rect, Chart::Square);
         if map == DiskMap::Orthographic && rect.radius_range().0 >= 1.0 {
@@ -197,7 +212,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         let g = u64::from(self.config.bound_grid) + 1;
         let depth = u32::from(self.config.integration_depth);
         let search = g * g + 1200;
-        self.spend((1 + cell.applications(tol, depth)) * self.per_application + search);
+        *spent += (1 + cell.applications(tol, depth)) * self.per_application + search;
         let (chart_bound, chart_grid) =
             self.proposal_bound(&chart, rect, &peak, v1, None, Known::default());
         // A rim node is sampled in the proposal with the smaller box it can bound. The angle
@@ -213,7 +228,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         let (flat, box_bound, flat_grid) = match rim {
             None | Some(RimProbe::Unbounded) => (chart, chart_bound, chart_grid),
             Some(RimProbe::Bounded(limit)) => {
-                self.spend(search);
+                *spent += search;
                 let (square_bound, square_grid) =
                     self.proposal_bound(&square, rect, &peak, v1, Some(limit), Known::default());
                 // The root and its children (orthographic) take the polar box in the
@@ -235,8 +250,14 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             (Some(RimProbe::Bounded(limit)), Chart::Square | Chart::Polar) => Some(limit),
             _ => None,
         };
-        let (mut proposal, mut bound) =
-            self.shaped((flat, box_bound, flat_grid), rect, &peak, v1, rim_limit);
+        let (mut proposal, mut bound) = self.shaped(
+            (flat, box_bound, flat_grid),
+            rect,
+            &peak,
+            v1,
+            rim_limit,
+            spent,
+        );
         let mut box_bound = box_bound;
         // On the concentric map the polar box of the root or a child has the square's flat
         // volume (both cover the node's part of the disk exactly), but a shape over it follows
@@ -247,7 +268,14 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             (map, flat.chart, Proposal::polar(rect))
         {
             let polar_box = polar_bound(map, box_bound);
-            let (p, b) = self.shaped((polar, polar_box, Vec::new()), rect, &peak, v1, rim_limit);
+            let (p, b) = self.shaped(
+                (polar, polar_box, Vec::new()),
+                rect,
+                &peak,
+                v1,
+                rim_limit,
+                spent,
+            );
             if p.volume(b) < proposal.volume(bound) {
                 (proposal, bound, box_bound) = (p, b, polar_box);
             }
@@ -275,6 +303,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         peak: &Peak,
         v1: f64,
         rim_limit: Option<f64>,
+        spent: &mut u64,
     ) -> (Proposal, f64) {
         // Only the square and polar boxes. The rim charts (angle, sine) are chosen where f
         // grows without bound at the rim or climbs steeply just short of it, and their
@@ -348,7 +377,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         // (The grid, hints and searches, four more for a fine shape's quarters; the rim band
         // where there is one.)
         let quarters = if shape.grid().is_some() { 1600 } else { 0 };
-        self.spend(g * g + 1300 + quarters + if rim_limit.is_some() { 7 * 66 } else { 0 });
+        *spent += g * g + 1300 + quarters + if rim_limit.is_some() { 7 * 66 } else { 0 };
         let known = Known {
             coarse: Some(&grid[..coarse_len]),
             rim_band: &rim_band,
@@ -359,23 +388,6 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         } else {
             (flat, box_bound)
         }
-    }
-
-    /// Evaluates nodes (in parallel when enabled), each from its inherited cells.
-    pub(crate) fn evaluate_all(
-        &self,
-        nodes: Vec<(Rect, Option<Cell>)>,
-    ) -> Vec<(Evaluation, Option<Cell>)> {
-        let one = |(r, c): (Rect, Option<Cell>)| {
-            let (e, cells) = self.evaluate(&r, c);
-            (e, self.remember(cells))
-        };
-        #[cfg(feature = "rayon")]
-        if self.config.parallel {
-            use rayon::prelude::*;
-            return nodes.into_par_iter().map(one).collect();
-        }
-        nodes.into_iter().map(one).collect()
     }
 
     /// A new leaf's cells as the cache budget allows ([`CELL_CACHE_LIMIT`]), counted in.
@@ -408,9 +420,8 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
     }
 
     /// Counts out a leaf's cells as it hands them to its children.
-    pub(crate) fn forget(&self, cells: &Option<Cell>) {
-        if let Some(c) = cells {
-            self.cached.fetch_sub(c.count(), AtomicOrdering::Relaxed);
-        }
+    pub(crate) fn forget_cell(&self, cells: &Cell) {
+        self.cached
+            .fetch_sub(cells.count(), AtomicOrdering::Relaxed);
     }
 }

@@ -4,13 +4,14 @@
 use crate::chart::{Chart, Rect, child_column, child_row};
 use crate::config::BuildConfig;
 use crate::error::BuildError;
-use crate::evaluate::{Context, SPLIT_CHUNK};
+use crate::evaluate::{Context, Evaluation, SPLIT_CHUNK};
 use crate::integrate::Cell;
 use crate::proposal::Proposal;
 use alloc::collections::BinaryHeap;
 use alloc::vec::Vec;
 use brdf_core::{Brdf, DiskMap};
 use core::cmp::Ordering;
+use core::sync::atomic::{AtomicU64, AtomicUsize, Ordering as AtomicOrdering};
 use glam::{DVec2, Vec3};
 
 /// No child: the node is a leaf.
@@ -149,6 +150,139 @@ pub struct Quadtree {
     budget_exhausted: bool,
 }
 
+/// What a leaf keeps for its split: nothing, its integration cells (its children start
+/// from their quadrants), or its four children already evaluated — speculatively, by a
+/// parallel build while the leaf's own level was being evaluated ([`Speculation`]).
+pub(crate) enum Pending {
+    /// Nothing kept: the children integrate from scratch.
+    Nothing,
+    /// The leaf's integration cells.
+    Cells(Cell),
+    /// The four children, in child order, each with what it keeps and what it spent.
+    Children(Vec<Evaluated>),
+}
+
+impl Pending {
+    fn from_cells(cells: Option<Cell>) -> Self {
+        cells.map_or(Self::Nothing, Self::Cells)
+    }
+}
+
+/// A node's evaluation, what it keeps for its own split, and the f_r evaluations it spent
+/// (counted when the build adopts it).
+pub(crate) struct Evaluated {
+    e: Evaluation,
+    pending: Pending,
+    spent: u64,
+}
+
+/// A parallel build's look-ahead: a node whose evaluation shows it will almost surely split
+/// evaluates its four children at once, in the same parallel pass, instead of waiting for its
+/// level to end. Each node's evaluation is a pure function of its square (and the memoised
+/// cells only save work), so the tree is the same bit for bit: the breadth-first pass still
+/// decides every split in index order and adopts a speculated child's evaluation, and its
+/// spend, only where it splits. What speculation buys is overlap: the children of a level's
+/// early finishers fill the time its slowest node would leave a thread idle at the level's
+/// end. Serial builds never speculate.
+struct Speculation {
+    /// The total v1 of the leaves when the pass began: the waste cut-off's scale.
+    total: f64,
+    /// Nodes speculated so far, against [`Speculation::limit`] (a race on it only changes
+    /// how much is speculated).
+    made: AtomicUsize,
+    limit: usize,
+    /// f_r evaluations reserved for speculated nodes (four times their parent's spend
+    /// each): see [`Speculation::affords`].
+    spent: AtomicU64,
+}
+
+impl Speculation {
+    /// Whether a node of `depth` with evaluation `e` is worth evaluating the children of
+    /// now: the seed's rule would split it even against twice the waste cut-off (the
+    /// breadth-first pass judges against the total of its own time, which refinement moves
+    /// a little), and the speculation budget allows four more nodes.
+    fn wants<B: Brdf + ?Sized>(
+        &self,
+        ctx: &Context<'_, B>,
+        (depth, column, row): (u8, u32, u32),
+        e: &Evaluation,
+        spent: u64,
+    ) -> bool {
+        let cfg = &ctx.config;
+        let n = Node {
+            column,
+            row,
+            depth,
+            first_child: LEAF,
+            v1: e.v1,
+            bound: e.bound,
+            box_bound: e.box_bound,
+            proposal: e.proposal,
+        };
+        let seed_box = n.seed_box_volume(cfg.map);
+        let p = if seed_box > 0.0 { n.v1 / seed_box } else { 0.0 };
+        depth < cfg.max_depth
+            && n.v1 > 0.0
+            && p < cfg.split_threshold
+            && seed_box / cfg.bound_safety - n.v1 > 2.0 * cfg.min_relative_waste * self.total
+            && self.affords(ctx, spent)
+            && self.made.fetch_add(4, AtomicOrdering::Relaxed) + 4 <= self.limit
+    }
+
+    /// Whether four children of a node that spent `spent` evaluations fit the evaluation
+    /// budget's first half with everything spent and speculated so far: the budget bounds a
+    /// build's time, and work speculated past where it stops the build (a measured BRDF's
+    /// bins keep every node's integration at full depth) would only be wasted. (A node's
+    /// children inherit its cells, so four of them rarely cost four times its spend.)
+    fn affords<B: Brdf + ?Sized>(&self, ctx: &Context<'_, B>, spent: u64) -> bool {
+        let estimate = spent.saturating_mul(4);
+        let reserved = self.spent.fetch_add(estimate, AtomicOrdering::Relaxed);
+        ctx.spent
+            .load(AtomicOrdering::Relaxed)
+            .saturating_add(reserved)
+            .saturating_add(estimate)
+            <= ctx.config.evaluation_budget / 2
+    }
+}
+
+/// Evaluates nodes given as (depth, column, row) with their inherited cells, in parallel
+/// when the build is; with `speculation`, a node it wants evaluates its children too,
+/// recursively.
+fn evaluate_nodes<B: Brdf + ?Sized>(
+    ctx: &Context<'_, B>,
+    nodes: Vec<((u8, u32, u32), Option<Cell>)>,
+    speculation: Option<&Speculation>,
+) -> Vec<Evaluated> {
+    let one = |((depth, column, row), cells): ((u8, u32, u32), Option<Cell>)| {
+        let mut spent = 0;
+        let (e, cells) = ctx.evaluate_counted(&Rect::dyadic(depth, column, row), cells, &mut spent);
+        let pending = match (speculation, cells) {
+            (Some(s), Some(cells)) if s.wants(ctx, (depth, column, row), &e, spent) => {
+                let kids = (0..4).map(|k| {
+                    (
+                        depth + 1,
+                        2 * column + child_column(k) as u32,
+                        2 * row + child_row(k) as u32,
+                    )
+                });
+                Pending::Children(evaluate_nodes(
+                    ctx,
+                    kids.zip(cells.into_quads()).collect(),
+                    speculation,
+                ))
+            }
+            (_, cells) => Pending::from_cells(ctx.remember(cells)),
+        };
+        Evaluated { e, pending, spent }
+    };
+    #[cfg(feature = "rayon")]
+    if ctx.config.parallel {
+        use rayon::prelude::*;
+        return nodes.into_par_iter().map(one).collect();
+    }
+    nodes.into_iter().map(one).collect()
+}
+
 impl Quadtree {
     /// Builds the tree of f_r(wi, ·) for a local `wi` (normalised here; it must be finite,
     /// non-zero and above the horizon). Delta models are an error, and so is an f_r that is 0
@@ -205,7 +339,7 @@ impl Quadtree {
         let root_rect = Rect::square(-1.0, -1.0, 2.0);
         let (e, cells) = ctx.evaluate(&root_rect, Some(root_cells));
         // Each leaf's integration cells, until it splits and hands them to its children.
-        let mut pending = alloc::vec![ctx.remember(cells)];
+        let mut pending = alloc::vec![Pending::from_cells(ctx.remember(cells))];
         let mut tree = Self {
             nodes: alloc::vec![Node {
                 column: 0,
@@ -224,7 +358,20 @@ impl Quadtree {
         // children together (in parallel when enabled). Same tree either way.
         let mut frontier: Vec<u32> = alloc::vec![0];
         let mut total = e.v1;
+        // Only where another thread can take the look-ahead's work: on one thread it would
+        // only add the evaluations of nodes that do not split in the end.
+        #[cfg(feature = "rayon")]
+        let look_ahead = cfg.parallel && rayon::current_num_threads() > 1;
+        #[cfg(not(feature = "rayon"))]
+        let look_ahead = false;
+        let mut speculation = Speculation {
+            total,
+            made: AtomicUsize::new(0),
+            limit: budget / 4,
+            spent: AtomicU64::new(0),
+        };
         while !frontier.is_empty() {
+            speculation.total = total;
             let mut split = Vec::new();
             for &i in &frontier {
                 let n = &tree.nodes[i as usize];
@@ -257,7 +404,8 @@ impl Quadtree {
                     break;
                 }
                 let before: f64 = chunk.iter().map(|&i| tree.nodes[i as usize].v1).sum();
-                let children = tree.split(ctx, chunk, &mut pending);
+                let children =
+                    tree.split(ctx, chunk, &mut pending, look_ahead.then_some(&speculation));
                 let after: f64 = children.iter().map(|&i| tree.nodes[i as usize].v1).sum();
                 total += after - before;
                 next.extend(children);
@@ -300,35 +448,57 @@ impl Quadtree {
     }
 
     /// Splits the given leaves into four children each, evaluates the children (each from its
-    /// quadrant of the parent's integration cells), and returns their indices.
+    /// quadrant of the parent's integration cells, or adopted from a speculation), and
+    /// returns their indices. With `speculation`, a child that will almost surely split
+    /// evaluates its own children in the same pass.
     fn split<B: Brdf + ?Sized>(
         &mut self,
         ctx: &Context<'_, B>,
         parents: &[u32],
-        pending: &mut Vec<Option<Cell>>,
+        pending: &mut Vec<Pending>,
+        speculation: Option<&Speculation>,
     ) -> Vec<u32> {
-        // Each new node's cell: (depth, column, row).
+        // Each new node's cell: (depth, column, row), and its evaluation once known.
         let mut children = Vec::with_capacity(4 * parents.len());
-        let mut inherited = Vec::with_capacity(4 * parents.len());
+        let mut evaluated: Vec<Option<Evaluated>> = Vec::with_capacity(4 * parents.len());
+        // The children no speculation evaluated, with their inherited cells.
+        let mut fresh = Vec::new();
         let first_new = self.nodes.len() as u32;
         for (k, &p) in parents.iter().enumerate() {
             let n = self.nodes[p as usize];
             self.nodes[p as usize].first_child = first_new + 4 * k as u32;
-            let cells = pending[p as usize].take();
-            ctx.forget(&cells);
-            inherited.extend(cells.map_or([None, None, None, None], Cell::into_quads));
-            children.extend((0..4).map(|k| {
+            let cells = (0..4).map(|k| {
                 (
                     n.depth + 1,
                     2 * n.column + child_column(k) as u32,
                     2 * n.row + child_row(k) as u32,
                 )
-            }));
+            });
+            children.extend(cells.clone());
+            match core::mem::replace(&mut pending[p as usize], Pending::Nothing) {
+                Pending::Children(kids) => evaluated.extend(kids.into_iter().map(Some)),
+                kept => {
+                    let quads = match kept {
+                        Pending::Cells(c) => {
+                            ctx.forget_cell(&c);
+                            c.into_quads()
+                        }
+                        _ => [None, None, None, None],
+                    };
+                    evaluated.extend([None, None, None, None]);
+                    fresh.extend(cells.zip(quads));
+                }
+            }
         }
-        let rects = children.iter().map(|&(d, c, r)| Rect::dyadic(d, c, r));
-        let evals = ctx.evaluate_all(rects.zip(inherited).collect());
-        for ((depth, column, row), (e, cells)) in children.into_iter().zip(evals) {
-            pending.push(cells);
+        let mut fresh = evaluate_nodes(ctx, fresh, speculation).into_iter();
+        for ((depth, column, row), slot) in children.into_iter().zip(evaluated) {
+            let Evaluated {
+                e,
+                pending: kept,
+                spent,
+            } = slot.unwrap_or_else(|| fresh.next().expect("one evaluation a fresh child"));
+            ctx.spend(spent);
+            pending.push(kept);
             self.nodes.push(Node {
                 column,
                 row,
@@ -355,7 +525,7 @@ impl Quadtree {
         &mut self,
         ctx: &Context<'_, B>,
         target: f64,
-        pending: &mut Vec<Option<Cell>>,
+        pending: &mut Vec<Pending>,
     ) {
         #[derive(PartialEq)]
         struct Waste(f64, u32);
@@ -414,7 +584,7 @@ impl Quadtree {
                 boxes -= n.box_volume();
                 v1s -= n.v1;
             }
-            for c in self.split(ctx, &batch, pending) {
+            for c in self.split(ctx, &batch, pending, None) {
                 let n = &self.nodes[c as usize];
                 if n.v1 > 0.0 {
                     boxes += n.box_volume();

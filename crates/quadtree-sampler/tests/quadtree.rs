@@ -269,17 +269,39 @@ fn serial_and_parallel_builds_are_bit_identical() {
     ] {
         let b = model(name, params);
         let wi = dir(45.0, 10.0);
-        for target in [None, Some(1.3)] {
+        // The seed's rule, target mode, and builds that the node budget or the evaluation
+        // budget stops part-way (a parallel build evaluates ahead of the breadth-first pass,
+        // which must still stop where the serial one does), on both maps.
+        let budgets = [
+            (None, u32::MAX, u64::MAX, DiskMap::Orthographic),
+            (Some(1.3), u32::MAX, u64::MAX, DiskMap::Orthographic),
+            (None, 61, u64::MAX, DiskMap::Orthographic),
+            (Some(1.1), u32::MAX, 100_000, DiskMap::Orthographic),
+            (None, u32::MAX, u64::MAX, DiskMap::Concentric),
+            (Some(1.2), 17, u64::MAX, DiskMap::Concentric),
+        ];
+        for (target, node_budget, evaluation_budget, map) in budgets {
+            let config = BuildConfig {
+                target_trials: target,
+                node_budget: node_budget.min(BuildConfig::default().node_budget),
+                evaluation_budget: evaluation_budget.min(BuildConfig::default().evaluation_budget),
+                map,
+                ..BuildConfig::default()
+            };
             let serial = Quadtree::new(
                 &*b,
                 wi,
                 BuildConfig {
                     parallel: false,
-                    target_trials: target,
-                    ..BuildConfig::default()
+                    ..config
                 },
             )
             .unwrap();
+            // (The evaluation budget's allowance per node lets the smaller trees finish.)
+            if node_budget != u32::MAX || (evaluation_budget != u64::MAX && name == "cook-torrance")
+            {
+                assert!(serial.budget_exhausted(), "{name} {config:?}");
+            }
             for threads in [1, 2, 3, 4] {
                 let pool = rayon::ThreadPoolBuilder::new()
                     .num_threads(threads)
@@ -291,13 +313,13 @@ fn serial_and_parallel_builds_are_bit_identical() {
                         wi,
                         BuildConfig {
                             parallel: true,
-                            target_trials: target,
-                            ..BuildConfig::default()
+                            ..config
                         },
                     )
                     .unwrap()
                 });
-                assert_eq!(serial.nodes().len(), par.nodes().len());
+                assert_eq!(serial.nodes().len(), par.nodes().len(), "{name} {config:?}");
+                assert_eq!(serial.budget_exhausted(), par.budget_exhausted());
                 for (a, c) in serial.nodes().iter().zip(par.nodes()) {
                     assert_eq!(a.v1.to_bits(), c.v1.to_bits(), "{name}: {threads} threads");
                     assert_eq!(a.bound.to_bits(), c.bound.to_bits());
