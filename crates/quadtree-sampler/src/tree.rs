@@ -94,6 +94,20 @@ impl Node {
             self.proposal.area() * self.box_bound
         }
     }
+
+    /// The leaf of the dyadic cell (depth, column, row) with evaluation `e`.
+    pub(crate) fn leaf((depth, column, row): (u8, u32, u32), e: &Evaluation) -> Self {
+        Self {
+            column,
+            row,
+            depth,
+            first_child: LEAF,
+            v1: e.v1,
+            bound: e.bound,
+            box_bound: e.box_bound,
+            proposal: e.proposal,
+        }
+    }
 }
 
 /// Counts that describe a built tree.
@@ -209,16 +223,7 @@ impl Speculation {
         spent: u64,
     ) -> bool {
         let cfg = &ctx.config;
-        let n = Node {
-            column,
-            row,
-            depth,
-            first_child: LEAF,
-            v1: e.v1,
-            bound: e.bound,
-            box_bound: e.box_bound,
-            proposal: e.proposal,
-        };
+        let n = Node::leaf((depth, column, row), e);
         let seed_box = n.seed_box_volume(cfg.map);
         let p = if seed_box > 0.0 { n.v1 / seed_box } else { 0.0 };
         depth < cfg.max_depth
@@ -341,16 +346,7 @@ impl Quadtree {
         // Each leaf's integration cells, until it splits and hands them to its children.
         let mut pending = alloc::vec![Pending::from_cells(ctx.remember(cells))];
         let mut tree = Self {
-            nodes: alloc::vec![Node {
-                column: 0,
-                row: 0,
-                depth: 0,
-                first_child: LEAF,
-                v1: e.v1,
-                bound: e.bound,
-                box_bound: e.box_bound,
-                proposal: e.proposal
-            }],
+            nodes: alloc::vec![Node::leaf((0, 0, 0), &e)],
             map: cfg.map,
             budget_exhausted: false,
         };
@@ -499,16 +495,7 @@ impl Quadtree {
             } = slot.unwrap_or_else(|| fresh.next().expect("one evaluation a fresh child"));
             ctx.spend(spent);
             pending.push(kept);
-            self.nodes.push(Node {
-                column,
-                row,
-                depth,
-                first_child: LEAF,
-                v1: e.v1,
-                bound: e.bound,
-                box_bound: e.box_bound,
-                proposal: e.proposal,
-            });
+            self.nodes.push(Node::leaf((depth, column, row), &e));
         }
         (first_new..self.nodes.len() as u32).collect()
     }
