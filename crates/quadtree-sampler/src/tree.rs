@@ -95,6 +95,26 @@ impl Node {
         }
     }
 
+    /// The seed's rule (`particionar`), with the waste cut-off's scale `total` (the leaves'
+    /// total v1): split while the node may go deeper, holds something, has P below the
+    /// threshold and wastes more than the cut-off. v1 = 0 with M > 0 counts as holding
+    /// something: the bound search met f > 0 where every integration point saw 0 (a lobe
+    /// narrower than the rule's spacing, at grazing incidence the whole of f_r), so the
+    /// node's integration is too coarse, and its children's finer rules find the mass.
+    /// (P and the waste are judged by the box the rule judges by, `seed_box_volume`.)
+    fn seed_rule_splits(&self, cfg: &BuildConfig, total: f64) -> bool {
+        let seed_box = self.seed_box_volume(cfg.map);
+        let p = if seed_box > 0.0 {
+            self.v1 / seed_box
+        } else {
+            0.0
+        };
+        self.depth < cfg.max_depth
+            && (self.v1 > 0.0 || self.bound > 0.0)
+            && p < cfg.split_threshold
+            && seed_box / cfg.bound_safety - self.v1 > cfg.min_relative_waste * total
+    }
+
     /// The leaf of the dyadic cell (depth, column, row) with evaluation `e`.
     pub(crate) fn leaf((depth, column, row): (u8, u32, u32), e: &Evaluation) -> Self {
         Self {
@@ -211,25 +231,20 @@ struct Speculation {
 }
 
 impl Speculation {
-    /// Whether a node of `depth` with evaluation `e` is worth evaluating the children of
-    /// now: the seed's rule would split it even against twice the waste cut-off (the
-    /// breadth-first pass judges against the total of its own time, which refinement moves
-    /// a little), and the speculation budget allows four more nodes.
+    /// Whether the node of dyadic `cell` with evaluation `e` (which spent `spent`) is worth
+    /// evaluating the children of now: it holds mass and the seed's rule would split it even
+    /// against twice the waste cut-off (the breadth-first pass judges against the total of
+    /// its own time, which refinement moves a little), and the speculation budgets allow
+    /// four more nodes.
     fn wants<B: Brdf + ?Sized>(
         &self,
         ctx: &Context<'_, B>,
-        (depth, column, row): (u8, u32, u32),
+        cell: (u8, u32, u32),
         e: &Evaluation,
         spent: u64,
     ) -> bool {
-        let cfg = &ctx.config;
-        let n = Node::leaf((depth, column, row), e);
-        let seed_box = n.seed_box_volume(cfg.map);
-        let p = if seed_box > 0.0 { n.v1 / seed_box } else { 0.0 };
-        depth < cfg.max_depth
-            && n.v1 > 0.0
-            && p < cfg.split_threshold
-            && seed_box / cfg.bound_safety - n.v1 > 2.0 * cfg.min_relative_waste * self.total
+        e.v1 > 0.0
+            && Node::leaf(cell, e).seed_rule_splits(&ctx.config, 2.0 * self.total)
             && self.affords(ctx, spent)
             && self.made.fetch_add(4, AtomicOrdering::Relaxed) + 4 <= self.limit
     }
@@ -250,6 +265,17 @@ impl Speculation {
     }
 }
 
+/// The dyadic cells (depth, column, row) of a cell's four children, in child order.
+fn children_of((depth, column, row): (u8, u32, u32)) -> [(u8, u32, u32); 4] {
+    core::array::from_fn(|k| {
+        (
+            depth + 1,
+            2 * column + child_column(k) as u32,
+            2 * row + child_row(k) as u32,
+        )
+    })
+}
+
 /// Evaluates nodes given as (depth, column, row) with their inherited cells, in parallel
 /// when the build is; with `speculation`, a node it wants evaluates its children too,
 /// recursively.
@@ -263,13 +289,7 @@ fn evaluate_nodes<B: Brdf + ?Sized>(
         let (e, cells) = ctx.evaluate_counted(&Rect::dyadic(depth, column, row), cells, &mut spent);
         let pending = match (speculation, cells) {
             (Some(s), Some(cells)) if s.wants(ctx, (depth, column, row), &e, spent) => {
-                let kids = (0..4).map(|k| {
-                    (
-                        depth + 1,
-                        2 * column + child_column(k) as u32,
-                        2 * row + child_row(k) as u32,
-                    )
-                });
+                let kids = children_of((depth, column, row)).into_iter();
                 Pending::Children(evaluate_nodes(
                     ctx,
                     kids.zip(cells.into_quads()).collect(),
@@ -370,20 +390,7 @@ impl Quadtree {
             speculation.total = total;
             let mut split = Vec::new();
             for &i in &frontier {
-                let n = &tree.nodes[i as usize];
-                // v1 = 0 with M > 0: the bound search met f > 0 where every integration
-                // point saw 0 (a lobe narrower than the rule's spacing, at grazing incidence
-                // the whole of f_r): the node is not empty, its integration is too coarse.
-                // Split it, and let its children's finer rules find the mass.
-                // (P and the reducible waste as `acceptance` and `reducible_waste` give them,
-                // of the box the rule judges by.)
-                let seed_box = n.seed_box_volume(cfg.map);
-                let p = if seed_box > 0.0 { n.v1 / seed_box } else { 0.0 };
-                let wants = n.depth < cfg.max_depth
-                    && (n.v1 > 0.0 || n.bound > 0.0)
-                    && p < cfg.split_threshold
-                    && seed_box / cfg.bound_safety - n.v1 > cfg.min_relative_waste * total;
-                if wants {
+                if tree.nodes[i as usize].seed_rule_splits(cfg, total) {
                     if tree.nodes.len() + 4 * (split.len() + 1) > budget {
                         tree.budget_exhausted = true;
                         break;
@@ -463,14 +470,8 @@ impl Quadtree {
         for (k, &p) in parents.iter().enumerate() {
             let n = self.nodes[p as usize];
             self.nodes[p as usize].first_child = first_new + 4 * k as u32;
-            let cells = (0..4).map(|k| {
-                (
-                    n.depth + 1,
-                    2 * n.column + child_column(k) as u32,
-                    2 * n.row + child_row(k) as u32,
-                )
-            });
-            children.extend(cells.clone());
+            let cells = children_of((n.depth, n.column, n.row));
+            children.extend(cells);
             match core::mem::replace(&mut pending[p as usize], Pending::Nothing) {
                 Pending::Children(kids) => evaluated.extend(kids.into_iter().map(Some)),
                 kept => {
@@ -482,7 +483,7 @@ impl Quadtree {
                         _ => [None, None, None, None],
                     };
                     evaluated.extend([None, None, None, None]);
-                    fresh.extend(cells.zip(quads));
+                    fresh.extend(cells.into_iter().zip(quads));
                 }
             }
         }
