@@ -298,7 +298,7 @@ pub(crate) fn run_sample(
             if stats.budget_exhausted {
                 // stdout stays the JSON scripts read; the shortfall is said on stderr too.
                 eprintln!(
-                    "brdf: warning: the node budget stopped the build at {} nodes{}",
+                    "brdf: warning: a budget (nodes or f_r evaluations) stopped the build at {} nodes{}",
                     stats.nodes,
                     match args.options.target_trials {
                         Some(t) if stats.expected_trials > t => format!(
