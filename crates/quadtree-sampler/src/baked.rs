@@ -75,6 +75,13 @@ pub const DEFAULT_DEFENSIVE: f64 = 1e-6;
 /// The most trees one bake may hold (a typed error beyond: a grid of 10⁶ trees is a typo).
 pub const MAX_TREES: usize = 1 << 16;
 
+/// The most bytes of trees one bake may hold: 2 GiB. Each grid tree's node budget bounds
+/// one tree (1.5 MiB at [`DEFAULT_BAKE_NODE_BUDGET`]), but not a grid of thousands of them:
+/// the bake counts what its finished trees hold and stops with [`BakeError::TooLarge`] once
+/// they pass this, rather than take a machine's memory. The default grids hold 0.6–7 MiB
+/// (measured: `brdf bench`).
+pub const MAX_BAKE_BYTES: usize = 2 << 30;
+
 /// Which direction is given and which is sampled (pbrt's `TransportMode`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Role {
@@ -330,6 +337,16 @@ impl BakedSampler {
         config: BakeConfig,
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<Self, BakeError> {
+        Self::bake(brdf, config, progress, MAX_BAKE_BYTES)
+    }
+
+    /// The bake behind [`BakedSampler::new_with_progress`], its trees limited to `max_bytes`.
+    fn bake(
+        brdf: Arc<dyn Brdf>,
+        config: BakeConfig,
+        progress: &(dyn Fn(usize, usize) + Sync),
+        max_bytes: usize,
+    ) -> Result<Self, BakeError> {
         if !(config.defensive > 0.0 && config.defensive < 1.0) {
             return Err(BakeError::Defensive(config.defensive));
         }
@@ -350,16 +367,36 @@ impl BakedSampler {
         }
         let total = jobs.len();
         let done = AtomicU64::new(0);
+        // Bytes the finished trees hold. Once past the limit every tree not yet built fails
+        // at once; the error names the whole grid, so it is the same whichever trees finished
+        // first (serial and parallel bakes still agree).
+        let held = AtomicU64::new(0);
+        let too_large = BakeError::TooLarge {
+            trees: total,
+            limit: max_bytes,
+        };
         let build = |&(adj, k): &(bool, usize)| {
+            if held.load(Ordering::Relaxed) > max_bytes as u64 {
+                return Err(too_large.clone());
+            }
             let table: &dyn Brdf = if adj { &adjoint_model } else { &*brdf };
-            let r = Slice::build(table, grid.direction(k), config.build).map_err(|source| {
-                let (theta_deg, phi_deg) = grid.angles_deg(k);
-                BakeError::Tree {
-                    theta_deg,
-                    phi_deg,
-                    source,
-                }
-            });
+            let r = Slice::build(table, grid.direction(k), config.build)
+                .map_err(|source| {
+                    let (theta_deg, phi_deg) = grid.angles_deg(k);
+                    BakeError::Tree {
+                        theta_deg,
+                        phi_deg,
+                        source,
+                    }
+                })
+                .and_then(|s| {
+                    let bytes = s.bytes() as u64;
+                    if held.fetch_add(bytes, Ordering::Relaxed) + bytes > max_bytes as u64 {
+                        Err(too_large.clone())
+                    } else {
+                        Ok(s)
+                    }
+                });
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
             progress(d as usize, total);
             r
@@ -657,6 +694,7 @@ impl BakedSampler {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use alloc::string::ToString;
 
     /// The tabled choice is positive wherever the model's is (so no delta lobe is starved)
     /// and close to it (the tabulation is what it says); a model without a delta part, or
@@ -692,6 +730,40 @@ mod tests {
         ] {
             let b = brdf_core::registry::create(name, params.iter().copied()).unwrap();
             assert!(DeltaShare::new(&*b).is_none(), "{name}");
+        }
+    }
+
+    /// A grid whose trees pass the byte limit is a typed error, the same from the serial
+    /// and the parallel bake; just under the limit the same grid bakes.
+    #[test]
+    fn a_bake_past_its_byte_limit_is_an_error() {
+        let phong: Arc<dyn Brdf> = brdf_core::registry::create("phong", ["n=200"])
+            .unwrap()
+            .into();
+        let config = |parallel| BakeConfig {
+            theta_steps: 8,
+            build: BuildConfig {
+                parallel,
+                ..BakeConfig::default().build
+            },
+            ..BakeConfig::default()
+        };
+        let whole = BakedSampler::new(phong.clone(), config(false)).unwrap();
+        let bytes: usize = whole.all_slices().map(Slice::bytes).sum();
+        for parallel in [false, true] {
+            let err = BakedSampler::bake(phong.clone(), config(parallel), &|_, _| {}, bytes - 1)
+                .unwrap_err();
+            assert_eq!(
+                err,
+                BakeError::TooLarge {
+                    trees: 8,
+                    limit: bytes - 1
+                }
+            );
+            assert!(err.to_string().contains("fewer θ or φ steps"), "{err}");
+            let ok =
+                BakedSampler::bake(phong.clone(), config(parallel), &|_, _| {}, bytes).unwrap();
+            assert_eq!(ok.bytes(), whole.bytes());
         }
     }
 }

@@ -96,6 +96,14 @@ pub enum BakeError {
     },
     /// The grid would hold more than [`MAX_TREES`] trees.
     TooManyTrees(usize),
+    /// The grid's trees passed [`crate::MAX_BAKE_BYTES`]: too many trees, or too fine ones,
+    /// for one bake.
+    TooLarge {
+        /// The trees the grid asked for (twice the grid for a non-reciprocal model).
+        trees: usize,
+        /// The limit they passed, bytes.
+        limit: usize,
+    },
     /// `defensive` is not in (0, 1).
     Defensive(f64),
     /// The model has no continuous part (the perfect mirror): nothing to bake.
@@ -127,6 +135,11 @@ impl fmt::Display for BakeError {
                     "a grid of {n} trees is more than the {MAX_TREES} allowed"
                 )
             }
+            Self::TooLarge { trees, limit } => write!(
+                f,
+                "the grid's {trees} trees hold more than the {:.1} MiB a bake may: use fewer θ or φ steps, or a smaller node budget",
+                *limit as f64 / (1u64 << 20) as f64
+            ),
             Self::Defensive(d) => write!(f, "defensive share = {d} must be in (0, 1)"),
             Self::DeltaModel(m) => write!(
                 f,

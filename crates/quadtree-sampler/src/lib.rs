@@ -91,7 +91,7 @@ pub use bake_file::{BakeIoError, temporary_beside, write_atomically};
 pub use bake_grid::{BakeGrid, PhiDomain};
 pub use baked::{
     BakeConfig, BakedMode, BakedSampler, DEFAULT_BAKE_NODE_BUDGET, DEFAULT_DEFENSIVE,
-    DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, GRID_THETA_MAX_DEG, MAX_TREES, Role,
+    DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, GRID_THETA_MAX_DEG, MAX_BAKE_BYTES, MAX_TREES, Role,
 };
 pub use baked_views::{BakedAt, BrokenAt, BrokenPdf, WorldBsdf};
 pub use brdf_core;
