@@ -78,8 +78,8 @@ pub const MAX_TREES: usize = 1 << 16;
 /// The most bytes of trees one bake may hold: 2 GiB. Each grid tree's node budget bounds
 /// one tree (1.5 MiB at [`DEFAULT_BAKE_NODE_BUDGET`]), but not a grid of thousands of them:
 /// the bake counts what its finished trees hold and stops with [`BakeError::TooLarge`] once
-/// they pass this, rather than take a machine's memory. The default grids hold 0.6–7 MiB
-/// (measured: `brdf bench`).
+/// they pass this, rather than take a machine's memory. The default grids of the bench sets
+/// hold 0.02–7 MiB (measured: `brdf bench`, `examples/bake_grid.rs`).
 pub const MAX_BAKE_BYTES: usize = 2 << 30;
 
 /// Which direction is given and which is sampled (pbrt's `TransportMode`).
