@@ -46,6 +46,13 @@ pub const BAKE_FORMAT_VERSION: u32 = 5;
 const HEADER: usize = 8 + 4 + 8;
 const TRAILER: usize = 4;
 
+/// The longest bake file read: [`crate::MAX_BAKE_BYTES`] with its header and trailer. A
+/// file stores less than its bake holds in memory (0.1–0.5× of `bytes`, measured on
+/// `brdf bake` of lambert, phong n = 1000, strauss and anisotropic ward), so every bake a
+/// build can make is read back; a longer one (or a device that never ends) is refused
+/// before it is read.
+pub const MAX_BAKE_FILE_BYTES: u64 = crate::MAX_BAKE_BYTES as u64 + (HEADER + TRAILER) as u64;
+
 /// Why bytes could not be read as a bake file.
 #[derive(Clone, Debug, PartialEq)]
 pub enum BakeFileError {
@@ -64,6 +71,13 @@ pub enum BakeFileError {
         expected: u64,
         /// Bytes present.
         found: u64,
+    },
+    /// The header declares a file longer than [`MAX_BAKE_FILE_BYTES`].
+    TooLarge {
+        /// Bytes the header declares.
+        declared: u64,
+        /// The limit.
+        limit: u64,
     },
     /// More bytes than the header says.
     TrailingBytes {
@@ -108,6 +122,10 @@ impl fmt::Display for BakeFileError {
             Self::Truncated { expected, found } => {
                 write!(f, "truncated bake file: {found} bytes of {expected}")
             }
+            Self::TooLarge { declared, limit } => write!(
+                f,
+                "bake file declares {declared} bytes, more than the {limit} a bake may hold"
+            ),
             Self::TrailingBytes { expected, found } => {
                 write!(f, "bake file has {found} bytes, its header says {expected}")
             }
@@ -301,6 +319,42 @@ fn slices_from(
     Ok(Tables { slices })
 }
 
+/// Little-endian word of `n` bytes at `at` (a truncation error where `bytes` ends first).
+fn word(bytes: &[u8], at: usize, n: usize) -> Result<u64, BakeFileError> {
+    let b = bytes.get(at..at + n).ok_or(BakeFileError::Truncated {
+        expected: (at + n) as u64,
+        found: bytes.len() as u64,
+    })?;
+    Ok(b.iter()
+        .rev()
+        .fold(0u64, |acc, &x| (acc << 8) | u64::from(x)))
+}
+
+/// The whole file's length as its header (the first [`HEADER`] bytes of `bytes`) declares
+/// it, after checking the magic and the version, and that it is within
+/// [`MAX_BAKE_FILE_BYTES`].
+fn declared_length(bytes: &[u8]) -> Result<u64, BakeFileError> {
+    if bytes.len() < 8 || bytes[..8] != BAKE_MAGIC {
+        return Err(BakeFileError::NotABakeFile);
+    }
+    let version = word(bytes, 8, 4)? as u32;
+    if version != BAKE_FORMAT_VERSION {
+        return Err(BakeFileError::Version {
+            found: version,
+            supported: BAKE_FORMAT_VERSION,
+        });
+    }
+    let n = word(bytes, 12, 8)?;
+    let declared = n.saturating_add((HEADER + TRAILER) as u64);
+    if declared > MAX_BAKE_FILE_BYTES {
+        return Err(BakeFileError::TooLarge {
+            declared,
+            limit: MAX_BAKE_FILE_BYTES,
+        });
+    }
+    Ok(declared)
+}
+
 impl BakedSampler {
     /// The bake file's bytes (see the module doc of `bake_file`): everything needed to
     /// sample again without building a tree.
@@ -335,32 +389,8 @@ impl BakedSampler {
     /// Reads a bake file's bytes, rebuilding the model from the registry (see the module
     /// doc of `bake_file` for every check made).
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, BakeFileError> {
-        if bytes.len() < 8 || bytes[..8] != BAKE_MAGIC {
-            return Err(BakeFileError::NotABakeFile);
-        }
-        let word = |at: usize, n: usize| -> Result<u64, BakeFileError> {
-            let b = bytes.get(at..at + n).ok_or(BakeFileError::Truncated {
-                expected: (at + n) as u64,
-                found: bytes.len() as u64,
-            })?;
-            Ok(b.iter()
-                .rev()
-                .fold(0u64, |acc, &x| (acc << 8) | u64::from(x)))
-        };
-        let version = word(8, 4)? as u32;
-        if version != BAKE_FORMAT_VERSION {
-            return Err(BakeFileError::Version {
-                found: version,
-                supported: BAKE_FORMAT_VERSION,
-            });
-        }
-        let n = word(12, 8)?;
-        let expected =
-            n.checked_add((HEADER + TRAILER) as u64)
-                .ok_or(BakeFileError::Truncated {
-                    expected: u64::MAX,
-                    found: bytes.len() as u64,
-                })?;
+        let expected = declared_length(bytes)?;
+        let n = expected - (HEADER + TRAILER) as u64;
         let found = bytes.len() as u64;
         if found < expected {
             return Err(BakeFileError::Truncated { expected, found });
@@ -369,7 +399,7 @@ impl BakedSampler {
             return Err(BakeFileError::TrailingBytes { expected, found });
         }
         let body = HEADER + n as usize;
-        let stored = word(body, 4)? as u32;
+        let stored = word(bytes, body, 4)? as u32;
         let computed = crc32fast::hash(&bytes[..body]);
         if stored != computed {
             return Err(BakeFileError::Checksum { stored, computed });
@@ -402,9 +432,9 @@ impl BakedSampler {
 
 #[cfg(feature = "std")]
 mod files {
-    use super::{BakeFileError, BakedSampler};
+    use super::{BakeFileError, BakedSampler, HEADER, declared_length};
     use std::fmt;
-    use std::io::Write;
+    use std::io::{Read, Write};
     use std::path::{Path, PathBuf};
 
     /// Why a bake file could not be read or written.
@@ -487,17 +517,35 @@ mod files {
             })
         }
 
-        /// Reads a bake file (see [`BakedSampler::from_bytes`]).
+        /// Reads a bake file (see [`BakedSampler::from_bytes`]). Its header is read first:
+        /// no more than the length it declares (and at most [`super::MAX_BAKE_FILE_BYTES`]) is read
+        /// after it, so a huge file, or a device such as `/dev/zero`, is an error, not an
+        /// unbounded read.
         pub fn load(path: impl AsRef<Path>) -> Result<Self, BakeIoError> {
             let path = path.as_ref();
-            let bytes = std::fs::read(path).map_err(|source| BakeIoError::Io {
+            let io = |source| BakeIoError::Io {
                 path: path.to_path_buf(),
                 source,
-            })?;
-            Self::from_bytes(&bytes).map_err(|source| BakeIoError::Format {
+            };
+            let format = |source| BakeIoError::Format {
                 path: path.to_path_buf(),
                 source,
-            })
+            };
+            let mut file = std::fs::File::open(path).map_err(io)?;
+            let mut bytes = std::vec::Vec::new();
+            (&mut file)
+                .take(HEADER as u64)
+                .read_to_end(&mut bytes)
+                .map_err(io)?;
+            if bytes.len() == HEADER {
+                let declared = declared_length(&bytes).map_err(format)?;
+                // One byte past the declared length tells a longer file from an exact one.
+                let rest = declared + 1 - HEADER as u64;
+                let hint = file.metadata().map_or(0, |m| m.len()).min(declared);
+                bytes.reserve(usize::try_from(hint).unwrap_or(0));
+                file.take(rest).read_to_end(&mut bytes).map_err(io)?;
+            }
+            Self::from_bytes(&bytes).map_err(format)
         }
     }
 }

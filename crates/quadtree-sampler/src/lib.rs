@@ -85,7 +85,7 @@ mod tree;
 mod warp;
 mod warp_table;
 
-pub use bake_file::{BAKE_FORMAT_VERSION, BAKE_MAGIC, BakeFileError};
+pub use bake_file::{BAKE_FORMAT_VERSION, BAKE_MAGIC, BakeFileError, MAX_BAKE_FILE_BYTES};
 #[cfg(feature = "std")]
 pub use bake_file::{BakeIoError, temporary_beside, write_atomically};
 pub use bake_grid::{BakeGrid, PhiDomain};

@@ -556,6 +556,7 @@ fn damaged_bake_files_are_typed_errors() {
                 BakeFileError::Checksum { .. }
                     | BakeFileError::Truncated { .. }
                     | BakeFileError::TrailingBytes { .. }
+                    | BakeFileError::TooLarge { .. }
             ),
             "flip at {at}: {e:?}"
         );
@@ -607,6 +608,50 @@ fn damaged_bake_files_are_typed_errors() {
     bad_tree[last_payload] ^= 0x40;
     let r = BakedSampler::from_bytes(&reseal(bad_tree));
     assert!(r.is_err(), "a changed tree byte was accepted");
+    // A header that declares more than a bake may hold is refused before anything is read
+    // past it: from bytes, and from a file whose length word says 2⁴⁰ bytes.
+    let mut huge = bytes.clone();
+    huge[12..20].copy_from_slice(&(1u64 << 40).to_le_bytes());
+    let limit = quadtree_sampler::MAX_BAKE_FILE_BYTES;
+    assert_eq!(
+        BakedSampler::from_bytes(&huge).unwrap_err(),
+        BakeFileError::TooLarge {
+            declared: (1 << 40) + 24,
+            limit
+        }
+    );
+    let dir = std::env::temp_dir().join(format!("bake-huge-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("huge.bake");
+    std::fs::write(&path, &huge).unwrap();
+    let e = BakedSampler::load(&path).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            quadtree_sampler::BakeIoError::Format {
+                source: BakeFileError::TooLarge { .. },
+                ..
+            }
+        ),
+        "{e}"
+    );
+    // An endless device is not read to its end (it is not a bake file).
+    #[cfg(target_os = "linux")]
+    assert!(matches!(
+        BakedSampler::load("/dev/zero").unwrap_err(),
+        quadtree_sampler::BakeIoError::Format {
+            source: BakeFileError::NotABakeFile,
+            ..
+        }
+    ));
+    // A file exactly as written loads; with a byte more or less it does not.
+    std::fs::write(&path, &bytes).unwrap();
+    assert!(BakedSampler::load(&path).is_ok());
+    std::fs::write(&path, [&bytes[..], &[0]].concat()).unwrap();
+    assert!(BakedSampler::load(&path).is_err());
+    std::fs::write(&path, &bytes[..bytes.len() - 1]).unwrap();
+    assert!(BakedSampler::load(&path).is_err());
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// Bad input to the baked sampler is a typed error.
