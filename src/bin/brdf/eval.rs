@@ -3,7 +3,30 @@
 use crate::CliError;
 use brdf_sampling::geometry::unit_direction;
 use brdf_sampling::{Brdf, glam::Vec3};
-use std::io::{BufRead, BufWriter, Write};
+use std::io::{BufRead, BufWriter, Read, Write};
+
+/// The longest stdin line `eval` and `pdf` read (64 KiB: six numbers need well under 1 KiB).
+/// A longer one, such as an endless stream without a newline, is an error naming the line
+/// rather than a read until memory runs out.
+pub(crate) const MAX_LINE_BYTES: u64 = 1 << 16;
+
+/// Reads the next line into `line` (cleared first), the one after line `lineno`: `false` at
+/// the end of the input, an error for a line over [`MAX_LINE_BYTES`].
+pub(crate) fn next_line(
+    input: &mut impl BufRead,
+    line: &mut String,
+    lineno: u64,
+) -> Result<bool, CliError> {
+    line.clear();
+    let n = input.take(MAX_LINE_BYTES + 1).read_line(line)?;
+    if n as u64 > MAX_LINE_BYTES {
+        return Err(CliError::Input {
+            line: lineno + 1,
+            message: format!("longer than {MAX_LINE_BYTES} bytes"),
+        });
+    }
+    Ok(n > 0)
+}
 
 /// Reads `wix wiy wiz wox woy woz` lines, writes `r g b` lines. Directions are normalised;
 /// one below the horizon gives `0 0 0`; a malformed line, a NaN or a zero vector is an error
@@ -17,11 +40,7 @@ pub(crate) fn run(
     let mut line = String::new();
     let mut fmt = ryu::Buffer::new();
     let mut lineno = 0u64;
-    loop {
-        line.clear();
-        if input.read_line(&mut line)? == 0 {
-            break;
-        }
+    while next_line(&mut input, &mut line, lineno)? {
         lineno += 1;
         let nums = match brdf_sampling::text::parse_numbers::<6>(&line, "wix wiy wiz wox woy woz") {
             Ok(Some(n)) => n,

@@ -375,11 +375,7 @@ pub(crate) fn run_pdf(
     let mut out = BufWriter::new(out);
     let mut fmt = ryu::Buffer::new();
     let (mut line, mut lineno) = (String::new(), 0u64);
-    loop {
-        line.clear();
-        if input.read_line(&mut line)? == 0 {
-            break;
-        }
+    while crate::eval::next_line(&mut input, &mut line, lineno)? {
         lineno += 1;
         let bad = |message: String| CliError::Input {
             line: lineno,
