@@ -55,6 +55,19 @@ pub fn above_horizon(w: Vec3) -> bool {
     w.z > 0.0 && w.is_finite()
 }
 
+/// `w` as the unit direction a density is asked about: `w` itself where it is unit to f32
+/// rounding (|w|² within 10⁻⁵ of 1: every direction a sampler returns, which so keeps its
+/// bits and its pdf), otherwise `w` normalised in f64 (a tiny or huge vector keeps its
+/// direction); `None` for a zero, NaN or infinite `w`.
+#[inline]
+#[must_use]
+pub fn unit_for_density(w: Vec3) -> Option<Vec3> {
+    if (w.length_squared() - 1.0).abs() < 1e-5 {
+        return Some(w);
+    }
+    unit_direction(w).ok()
+}
+
 /// The local-frame mirror direction r(w) = (−x, −y, z): reflection of `w` about the normal.
 #[inline]
 #[must_use]
@@ -239,6 +252,21 @@ pub(crate) fn cos_power(a: DVec3, b: DVec3, n: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A unit direction keeps its bits; a scaled one is normalised (tiny and huge ones
+    /// included); a zero or non-finite one has no direction.
+    #[test]
+    fn unit_for_density_keeps_unit_bits_and_normalises_the_rest() {
+        let w = Vec3::new(0.3, -0.2, 0.9).normalize();
+        assert_eq!(unit_for_density(w), Some(w));
+        for scale in [1e-30f32, 1e-3, 3.0, 1e30] {
+            let got = unit_for_density(w * scale).unwrap();
+            assert!((got - w).length() < 1e-6, "{scale}: {got}");
+        }
+        for bad in [Vec3::ZERO, Vec3::NAN, Vec3::splat(f32::INFINITY)] {
+            assert_eq!(unit_for_density(bad), None);
+        }
+    }
 
     #[test]
     fn unit_direction_rejects_bad_input() {

@@ -19,7 +19,13 @@ fn wrap_unit(x: f64) -> f64 {
 #[inline]
 #[must_use]
 pub fn sample_uniform_hemisphere(u: Vec2) -> Vec3 {
-    let z = f64::from(u.x);
+    // u.x outside [0, 1] (or NaN) would give z outside it: a direction that is not unit or
+    // not above the horizon. Clamped (NaN to 0: the horizon, which a sample refuses).
+    let z = if u.x > 0.0 {
+        f64::from(u.x.min(1.0))
+    } else {
+        0.0
+    };
     let r = m::sqrt((1.0 - z * z).max(0.0));
     let phi = 2.0 * PI * f64::from(u.y);
     DVec3::new(r * m::cos(phi), r * m::sin(phi), z).as_vec3()

@@ -8,7 +8,7 @@ use crate::packed::{PackedTree, Selected};
 use crate::proposal::{Prepared, Proposal};
 use crate::tree::{Quadtree, TreeStats, albedo_of_volume};
 use alloc::sync::Arc;
-use brdf_core::geometry::{above_horizon, luminance, unit_direction_above};
+use brdf_core::geometry::{above_horizon, luminance, unit_direction_above, unit_for_density};
 use brdf_core::{Brdf, BrdfSample};
 use core::sync::atomic::{AtomicU64, Ordering};
 use glam::{DVec2, Vec2, Vec3};
@@ -310,9 +310,9 @@ impl<B: Brdf> QuadtreeSampler<B> {
     /// Y(f_r)·cos θ·J/V.
     #[must_use]
     pub fn pdf(&self, wo: Vec3) -> f32 {
-        if !above_horizon(wo) {
+        let Some(wo) = unit_for_density(wo).filter(|w| w.z > 0.0) else {
             return 0.0;
-        }
+        };
         self.pdf_of(self.brdf.eval_luminance(self.wi, wo), wo)
     }
 
@@ -398,9 +398,9 @@ impl<B: Brdf> BaselineSampler<B> {
     /// Density per unit solid angle.
     #[must_use]
     pub fn pdf(&self, wo: Vec3) -> f32 {
-        if !above_horizon(wo) {
+        let Some(wo) = unit_for_density(wo).filter(|w| w.z > 0.0) else {
             return 0.0;
-        }
+        };
         match self.kind {
             Baseline::Uniform => brdf_core::warp::uniform_hemisphere_pdf(),
             Baseline::Cosine => brdf_core::warp::cosine_hemisphere_pdf(wo.z),

@@ -131,18 +131,23 @@ impl<B: Brdf> TableSampler<B> {
     /// [0, 1). Draws no other numbers.
     #[must_use]
     pub fn sample_from(&self, u: f64, v: f64) -> Option<Sample> {
-        let (u, v) = (
-            u.clamp(0.0, 1.0 - f64::EPSILON),
-            v.clamp(0.0, 1.0 - f64::EPSILON),
-        );
+        // Into [0, 1): a NaN (which `clamp` keeps) to 0.
+        let unit = |x: f64| {
+            if x > 0.0 {
+                x.min(1.0 - f64::EPSILON)
+            } else {
+                0.0
+            }
+        };
+        let (u, v) = (unit(u), unit(v));
         let res = self.res;
-        // Row: the last k with marginal[k] <= v.
-        let row = (self.marginal.partition_point(|&c| c <= v) - 1).min(res - 1);
+        // Row: the last k with marginal[k] <= v (marginal[0] = 0 ≤ v).
+        let row = (self.marginal.partition_point(|&c| c <= v).saturating_sub(1)).min(res - 1);
         let (c0, c1) = (self.marginal[row], self.marginal[row + 1]);
         let fy = ((v - c0) / (c1 - c0)).clamp(0.0, 1.0);
         let cdf = &self.conditional[row * (res + 1)..(row + 1) * (res + 1)];
         let uf = u as f32;
-        let col = (cdf.partition_point(|&c| c <= uf) - 1).min(res - 1);
+        let col = (cdf.partition_point(|&c| c <= uf).saturating_sub(1)).min(res - 1);
         let (d0, d1) = (f64::from(cdf[col]), f64::from(cdf[col + 1]));
         let fx = ((u - d0) / (d1 - d0)).clamp(0.0, 1.0);
         let h = 2.0 / res as f64;
@@ -160,10 +165,10 @@ impl<B: Brdf> TableSampler<B> {
     /// the concentric map's Jacobian and cos θ.
     #[must_use]
     pub fn pdf(&self, wo: Vec3) -> f32 {
-        if !(wo.is_finite() && wo.z > 0.0) {
+        // Not an f32 normalisation: of a tiny vector it divides by 0.
+        let Some(wo) = brdf_core::geometry::unit_for_density(wo).filter(|w| w.z > 0.0) else {
             return 0.0;
-        }
-        let wo = wo.normalize();
+        };
         let p = DiskMap::Concentric.direction_to_square(wo);
         let cell =
             |t: f32| (((f64::from(t) + 1.0) * 0.5 * self.res as f64) as usize).min(self.res - 1);

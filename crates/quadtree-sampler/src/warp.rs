@@ -17,7 +17,7 @@ use crate::sampler::{DirectionSampler, Sample, uniform_f64};
 use crate::tree::{Quadtree, TreeStats, albedo_of_volume};
 use alloc::sync::Arc;
 use alloc::vec::Vec;
-use brdf_core::geometry::{above_horizon, unit_direction_above};
+use brdf_core::geometry::{above_horizon, unit_direction_above, unit_for_density};
 use brdf_core::{Brdf, DiskMap};
 use glam::{DVec2, Vec2, Vec3};
 use rand_core::Rng;
@@ -209,9 +209,9 @@ impl<B: Brdf> WarpSampler<B> {
     /// The warp's density at `wo` (local), per unit solid angle.
     #[must_use]
     pub fn pdf(&self, wo: Vec3) -> f32 {
-        if !above_horizon(wo) {
+        let Some(wo) = unit_for_density(wo).filter(|w| w.z > 0.0) else {
             return 0.0;
-        }
+        };
         let p = DiskMap::Concentric.direction_to_square(wo).as_dvec2();
         self.pdf_at(self.tree.leaf_at(p), wo)
     }

@@ -202,3 +202,64 @@ fn a_bake_through_the_factory_is_the_bake_at_that_wi() {
     }
     assert!(AnySampler::<Arc<dyn Brdf>>::baked(bake, Vec3::new(1.0, 0.0, -0.1)).is_err());
 }
+
+/// Uniforms outside [0, 1) (a caller's bug: NaN, ±∞, −1, 2) and degenerate directions never
+/// give a sample that is not a unit direction above the horizon with a finite, positive pdf
+/// and a finite weight, nor a pdf that is not finite, in any mode, a bake's included. (The
+/// uniform sampler returned wo = (0, 0, 2) for u.x = 2, and the table's pdf was ∞ for a
+/// direction of length 10⁻³⁰, before both were fixed.)
+#[test]
+fn out_of_range_uniforms_and_tiny_directions_stay_finite() {
+    let odd = [
+        0.0f32,
+        1.0 - f32::EPSILON / 2.0,
+        1.0,
+        -1.0,
+        2.0,
+        f32::NAN,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+    ];
+    let bake = Arc::new(
+        BakedSampler::new(
+            model("phong", &["n=50"]),
+            BakeConfig {
+                theta_steps: 4,
+                ..BakeConfig::default()
+            },
+        )
+        .unwrap(),
+    );
+    let mut samplers: Vec<AnySampler> = SamplerMode::ALL.into_iter().map(owned).collect();
+    samplers.push(AnySampler::baked(bake, wi()).unwrap());
+    let mut rng = Pcg64::seed_from_u64(3);
+    for s in &samplers {
+        for &uc in &odd {
+            for &x in &odd {
+                for &y in &odd {
+                    let Some(smp) = s.sample_with(uc, Vec2::new(x, y), &mut rng) else {
+                        continue;
+                    };
+                    let what = format!("{} at ({uc}, {x}, {y}): {smp:?}", s.name());
+                    assert!((smp.wo.length() - 1.0).abs() < 1e-5, "{what}");
+                    assert!(smp.wo.z >= 0.0, "{what}");
+                    assert!(smp.pdf.is_finite() && smp.pdf > 0.0, "{what}");
+                    assert!(smp.weight.is_finite(), "{what}");
+                }
+            }
+        }
+        let w = Vec3::new(0.3, -0.2, 0.9);
+        for scale in [1e-30f32, 1e-20, 1.0, 1e20] {
+            let (p, q) = (s.pdf(w * scale), s.pdf(w.normalize()));
+            assert!(p.is_finite(), "{} at scale {scale}: {p}", s.name());
+            assert!(
+                (p - q).abs() <= 1e-5 * q,
+                "{} at scale {scale}: {p} vs {q}",
+                s.name()
+            );
+        }
+        for bad in [Vec3::ZERO, Vec3::NAN, Vec3::splat(f32::INFINITY), -Vec3::Z] {
+            assert_eq!(s.pdf(bad), 0.0, "{} at {bad}", s.name());
+        }
+    }
+}
