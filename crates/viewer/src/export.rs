@@ -14,6 +14,16 @@ pub fn to_rgba(image: &ColorImage) -> image::RgbaImage {
     image::RgbaImage::from_raw(w as u32, h as u32, bytes).unwrap_or_default()
 }
 
+/// Writes `image` to `path` complete or not at all (encoded in memory, then
+/// [`quadtree_sampler::write_atomically`]), in the format the path's extension names.
+pub fn save_image(path: &Path, image: &image::RgbaImage) -> Result<(), String> {
+    let fault = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let format = image::ImageFormat::from_path(path).map_err(|e| fault(&e))?;
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    image.write_to(&mut bytes, format).map_err(|e| fault(&e))?;
+    quadtree_sampler::write_atomically(path, bytes.get_ref()).map_err(|e| fault(&e))
+}
+
 /// Writes `<name>.png` for every view rectangle (points, scaled by `pixels_per_point`),
 /// cropped from `screenshot`.
 pub fn write_views(
@@ -35,8 +45,7 @@ pub fn write_views(
         }
         let crop = image::imageops::crop_imm(&full, x0, y0, x1 - x0, y1 - y0).to_image();
         let path = dir.join(format!("{name}.png"));
-        crop.save(&path)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+        save_image(&path, &crop)?;
         files.push(path);
     }
     Ok(files)
@@ -59,10 +68,13 @@ fn write_exr(
         Encoding::FAST_LOSSLESS,
         AnyChannels::sort(list.into()),
     );
+    let fault = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let mut bytes = std::io::Cursor::new(Vec::new());
     Image::from_layer(layer)
         .write()
-        .to_file(path)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+        .to_buffered(&mut bytes)
+        .map_err(|e| fault(&e))?;
+    quadtree_sampler::write_atomically(path, bytes.get_ref()).map_err(|e| fault(&e))?;
     Ok(path.to_path_buf())
 }
 

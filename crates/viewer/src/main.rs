@@ -83,9 +83,7 @@ fn run(args: Args) -> Result<(), String> {
             } else {
                 viewer::screenshot::offscreen(launch, size, timeout, args.export.as_deref())?
             };
-            shot.image
-                .save(&path)
-                .map_err(|e| format!("{}: {e}", path.display()))?;
+            viewer::export::save_image(&path, &shot.image)?;
             println!(
                 "wrote {} ({}x{})",
                 path.display(),
