@@ -35,6 +35,20 @@ fn owned(mode: SamplerMode) -> AnySampler {
     .unwrap()
 }
 
+/// A bake of `brdf` with `theta_steps` rows (the other options default).
+fn small_bake(brdf: Arc<dyn Brdf>, theta_steps: u16) -> Arc<BakedSampler> {
+    Arc::new(
+        BakedSampler::new(
+            brdf,
+            BakeConfig {
+                theta_steps,
+                ..BakeConfig::default()
+            },
+        )
+        .unwrap(),
+    )
+}
+
 fn is_static_send_sync<T: 'static + Send + Sync>(_: &T) {}
 
 #[test]
@@ -179,16 +193,7 @@ fn the_descent_uniform_refines_and_stays_below_one() {
 
 #[test]
 fn a_bake_through_the_factory_is_the_bake_at_that_wi() {
-    let bake = Arc::new(
-        BakedSampler::new(
-            model("blinn-phong", &["n=50"]),
-            BakeConfig {
-                theta_steps: 6,
-                ..BakeConfig::default()
-            },
-        )
-        .unwrap(),
-    );
+    let bake = small_bake(model("blinn-phong", &["n=50"]), 6);
     let s = AnySampler::<Arc<dyn Brdf>>::baked(bake.clone(), wi()).unwrap();
     is_static_send_sync(&s);
     assert!(s.bake().is_some());
@@ -220,16 +225,7 @@ fn out_of_range_uniforms_and_tiny_directions_stay_finite() {
         f32::INFINITY,
         f32::NEG_INFINITY,
     ];
-    let bake = Arc::new(
-        BakedSampler::new(
-            model("phong", &["n=50"]),
-            BakeConfig {
-                theta_steps: 4,
-                ..BakeConfig::default()
-            },
-        )
-        .unwrap(),
-    );
+    let bake = small_bake(model("phong", &["n=50"]), 4);
     let mut samplers: Vec<AnySampler> = SamplerMode::ALL.into_iter().map(owned).collect();
     samplers.push(AnySampler::baked(bake, wi()).unwrap());
     let mut rng = Pcg64::seed_from_u64(3);
