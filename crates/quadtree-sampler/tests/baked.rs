@@ -434,7 +434,10 @@ fn world_frame() {
     assert!(WorldBsdf::new(&baked, Vec3::ZERO, None).is_err());
 }
 
-/// A bake with rayon (1 and 4 threads) is bit-identical to the serial bake.
+/// A bake with rayon (1 and 4 threads) is bit-identical to the serial bake. (Only with the
+/// `rayon` feature, which `cargo test --workspace` turns on: without it the "parallel" bake
+/// is the serial one.)
+#[cfg(feature = "rayon")]
 #[test]
 fn serial_and_parallel_bakes_are_identical() {
     for (name, params) in [
