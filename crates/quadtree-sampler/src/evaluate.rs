@@ -13,6 +13,14 @@ use brdf_core::{Brdf, DiskMap};
 use core::sync::atomic::{AtomicU64, AtomicUsize, Ordering as AtomicOrdering};
 use glam::{DVec2, DVec3, Vec3};
 
+/// A node's integration ([`Context::integrate_node`]).
+pub(crate) enum Integrated {
+    /// The node lies outside the disk: its whole (empty) evaluation.
+    Outside(Evaluation),
+    /// v1, the peak the integration met, and the cells it leaves for the children.
+    Inside { v1: f64, peak: Peak, cell: Cell },
+}
+
 /// What a node's evaluation found.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Evaluation {
@@ -75,6 +83,9 @@ pub(crate) struct Context<'a, B: Brdf + ?Sized> {
     /// Absolute floor of every node's integration tolerance: the relative tolerance times an
     /// estimate of the total volume (a node's error below it cannot be seen by any test).
     pub(crate) tol_floor: f64,
+    /// That estimate of the total volume: the root's adaptive integral to a relative 10⁻³
+    /// (the waste cut-off's scale for what the look-ahead evaluates alongside the root).
+    pub(crate) estimate: f64,
     /// Levels of each node's adaptive integration whose quadrants run in parallel.
     pub(crate) par_levels: u32,
     /// Integration cells remembered for the leaves (see [`CELL_CACHE_LIMIT`]).
@@ -112,6 +123,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             domain,
             hints,
             tol_floor: 0.0,
+            estimate: 0.0,
             // Every level: the work of a sharp lobe sits in one quadrant after another, so a
             // fixed number of top levels would leave one thread with all of it. A join that is
             // not stolen costs far less than the 4 × 36 evaluations of the cell it splits.
@@ -147,6 +159,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             ctx.par_levels,
         );
         ctx.tol_floor = config.integration_tolerance * 1e-2 * estimate.abs();
+        ctx.estimate = estimate;
         ctx.spend((1 + cell.applications(tol, 6)) * ctx.per_application);
         (ctx, cell)
     }
@@ -175,18 +188,32 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         cells: Option<Cell>,
         spent: &mut u64,
     ) -> (Evaluation, Option<Cell>) {
-        let map = self.config.map;
-        let square = Proposal::in_chart(rect, Chart::Square);
-        if map == DiskMap::Orthographic && rect.radius_range().0 >= 1.0 {
-            let e = Evaluation {
+        match self.integrate_node(rect, cells, spent) {
+            Integrated::Outside(e) => (e, None),
+            Integrated::Inside { v1, peak, cell } => {
+                (self.bound_node(rect, v1, &peak, spent), Some(cell))
+            }
+        }
+    }
+
+    /// A node evaluation's first half: v1 by adaptive integration (continued from `cells`),
+    /// with the peak it met and the cells it leaves for the children; adds its evaluations
+    /// to `spent`. The children's own evaluations need nothing more from their parent, so
+    /// they may run while [`Context::bound_node`] finishes the parent's.
+    pub(crate) fn integrate_node(
+        &self,
+        rect: &Rect,
+        cells: Option<Cell>,
+        spent: &mut u64,
+    ) -> Integrated {
+        if self.config.map == DiskMap::Orthographic && rect.radius_range().0 >= 1.0 {
+            return Integrated::Outside(Evaluation {
                 v1: 0.0,
                 bound: 0.0,
                 box_bound: 0.0,
-                proposal: square,
-            };
-            return (e, None);
+                proposal: Proposal::in_chart(rect, Chart::Square),
+            });
         }
-        let chart = Proposal::for_node(map, rect);
         let f = |w: DVec3| self.f(w);
         // One application of the rule sets the tolerance and is the refinement's start (the
         // node's points are integrated once, not twice; and not at all when the parent's
@@ -207,14 +234,30 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         )
         .max(0.0);
         // The node's integration as if nothing were memoised (so the count, and the budget's
-        // verdict, do not depend on the cache), and each bound search's grid, hints and three
-        // compass searches of at most 400 steps.
-        let g = u64::from(self.config.bound_grid) + 1;
+        // verdict, do not depend on the cache).
         let depth = u32::from(self.config.integration_depth);
+        *spent += (1 + cell.applications(tol, depth)) * self.per_application;
+        Integrated::Inside { v1, peak, cell }
+    }
+
+    /// A node evaluation's second half: its proposal and bound M, from the v1 and peak of
+    /// its integration ([`Context::integrate_node`]); adds its evaluations to `spent`.
+    pub(crate) fn bound_node(
+        &self,
+        rect: &Rect,
+        v1: f64,
+        peak: &Peak,
+        spent: &mut u64,
+    ) -> Evaluation {
+        let map = self.config.map;
+        let square = Proposal::in_chart(rect, Chart::Square);
+        let chart = Proposal::for_node(map, rect);
+        // Each bound search's grid, hints and three compass searches of at most 400 steps.
+        let g = u64::from(self.config.bound_grid) + 1;
         let search = g * g + 1200;
-        *spent += (1 + cell.applications(tol, depth)) * self.per_application + search;
+        *spent += search;
         let (chart_bound, chart_grid) =
-            self.proposal_bound(&chart, rect, &peak, v1, None, Known::default());
+            self.proposal_bound(&chart, rect, peak, v1, None, Known::default());
         // A rim node is sampled in the proposal with the smaller box it can bound. The angle
         // and sine charts bound f·Jacobian even where f is unbounded at the rim (Ward's 1/√z),
         // but their Jacobians vanish there, so their boxes waste about half of a rim node
@@ -230,7 +273,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             Some(RimProbe::Bounded(limit)) => {
                 *spent += search;
                 let (square_bound, square_grid) =
-                    self.proposal_bound(&square, rect, &peak, v1, Some(limit), Known::default());
+                    self.proposal_bound(&square, rect, peak, v1, Some(limit), Known::default());
                 // The root and its children (orthographic) take the polar box in the
                 // square's place: the same points, f·½, π/4 of the square's volume.
                 let polar = Proposal::polar(rect).filter(|_| map == DiskMap::Orthographic);
@@ -253,7 +296,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         let (mut proposal, mut bound) = self.shaped(
             (flat, box_bound, flat_grid),
             rect,
-            &peak,
+            peak,
             v1,
             rim_limit,
             spent,
@@ -271,7 +314,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             let (p, b) = self.shaped(
                 (polar, polar_box, Vec::new()),
                 rect,
-                &peak,
+                peak,
                 v1,
                 rim_limit,
                 spent,
@@ -280,13 +323,12 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
                 (proposal, bound, box_bound) = (p, b, polar_box);
             }
         }
-        let e = Evaluation {
+        Evaluation {
             v1,
             bound,
             box_bound,
             proposal,
-        };
-        (e, Some(cell))
+        }
     }
 
     /// The node's proposal with the height shape that samples it best ([`Shape`]): the flat
