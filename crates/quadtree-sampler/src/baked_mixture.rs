@@ -129,9 +129,14 @@ impl BakedSampler {
         // Otherwise: the domain's fold, and the rotation arc between the mirrors.
         let iso = self.grid.domain() == PhiDomain::Rotation;
         let (gc, cs, unfold, mc) = if iso {
-            let r = m::sqrt(g.x * g.x + g.y * g.y);
-            let cs = if r > 0.0 {
-                let inv = 1.0 / r;
+            // 1/r as r·(1/r²): the division and the square root run side by side instead of
+            // one after the other (each some 15 cycles, on every `sample`'s and `pdf`'s
+            // critical path). `given` is a unit f32 vector, so r² is 0 or at least 10⁻⁸⁹ and
+            // 1/r² finite.
+            let r2 = g.x * g.x + g.y * g.y;
+            let r = m::sqrt(r2);
+            let cs = if r2 > 0.0 {
+                let inv = r * (1.0 / r2);
                 (g.x * inv, g.y * inv)
             } else {
                 (1.0, 0.0)
