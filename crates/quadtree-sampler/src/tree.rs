@@ -245,7 +245,13 @@ impl Speculation {
     ) -> bool {
         e.v1 > 0.0
             && Node::leaf(cell, e).seed_rule_splits(&ctx.config, 2.0 * self.total)
-            && self.affords(ctx, spent)
+            && self.reserve(ctx, spent)
+    }
+
+    /// Whether the speculation budgets allow four more nodes, the children of a node that
+    /// spent `spent` evaluations (reserving them when they do).
+    fn reserve<B: Brdf + ?Sized>(&self, ctx: &Context<'_, B>, spent: u64) -> bool {
+        self.affords(ctx, spent)
             && self.made.fetch_add(4, AtomicOrdering::Relaxed) + 4 <= self.limit
     }
 
@@ -467,7 +473,8 @@ impl Quadtree {
     /// of it (0.55 of Schlick's 7.8 ms serial build); now only through its integration (0.37
     /// ms). The children need nothing of the root but its cells, so they are the same bits.
     /// The root's spend is counted at once, as [`Context::evaluate`] counts it; the
-    /// children's when adopted, as every speculated node's.
+    /// children are reserved against the speculation budgets and their spend counted when
+    /// adopted, as every speculated node's.
     fn evaluate_root_ahead<B: Brdf + ?Sized>(
         ctx: &Context<'_, B>,
         root: &Rect,
@@ -482,9 +489,8 @@ impl Quadtree {
                 return (e, Pending::Nothing);
             }
         };
-        let wanted = v1 > 0.0
-            && speculation.made.fetch_add(4, AtomicOrdering::Relaxed) + 4 <= speculation.limit;
-        if !wanted {
+        // (The root's spend so far is its integration's: the estimate `affords` judges by.)
+        if !(v1 > 0.0 && speculation.reserve(ctx, spent)) {
             let e = ctx.bound_node(root, v1, &peak, &mut spent);
             ctx.spend(spent);
             return (e, Pending::from_cells(ctx.remember(Some(cell))));
