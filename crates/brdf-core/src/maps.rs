@@ -53,6 +53,33 @@ pub fn disk_to_square_concentric(d: Vec2) -> Vec2 {
     }
 }
 
+/// [`disk_to_square_concentric`] in f64: unit disk → square [−1,1]², the inverse of
+/// [`concentric_direction_f64`]'s (x, y). f32 cannot place a point of the disk's rim band
+/// (a direction a few 10⁻⁵ above the horizon has 1 − r ≈ 10⁻¹⁰, below f32's resolution of
+/// 1), nor a lobe narrower than its 10⁻⁷ in angle: the quadtree's peak hints go through this.
+#[inline]
+#[must_use]
+pub fn disk_to_square_concentric_f64(d: DVec2) -> DVec2 {
+    use core::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+    let r = m::sqrt(d.x * d.x + d.y * d.y);
+    if r == 0.0 {
+        return DVec2::ZERO;
+    }
+    let mut phi = m::atan2(d.y, d.x);
+    if phi < -FRAC_PI_4 {
+        phi += 2.0 * PI;
+    }
+    if phi < FRAC_PI_4 {
+        DVec2::new(r, r * phi / FRAC_PI_4)
+    } else if phi < 3.0 * FRAC_PI_4 {
+        DVec2::new(-r * (phi - FRAC_PI_2) / FRAC_PI_4, r)
+    } else if phi < 5.0 * FRAC_PI_4 {
+        DVec2::new(-r, -r * (phi - PI) / FRAC_PI_4)
+    } else {
+        DVec2::new(-r * (3.0 * FRAC_PI_2 - phi) / FRAC_PI_4, -r)
+    }
+}
+
 /// The concentric map in f64 at square point `p`, lifted to the hemisphere with the given z
 /// (the caller knows z = √(1 − r²), r = max(|a|, |b|), often without cancellation: the sine
 /// chart of a rim node has it as the cosine of an angle). The one f64 copy of the map: the
@@ -156,6 +183,18 @@ impl DiskMap {
         match self {
             Self::Orthographic => hemisphere_to_disk(w),
             Self::Concentric => disk_to_square_concentric(hemisphere_to_disk(w)),
+        }
+    }
+
+    /// [`DiskMap::direction_to_square`] in f64, the inverse of
+    /// [`DiskMap::square_to_direction_f64`]: (x, y) on the orthographic map, its concentric
+    /// square point ([`disk_to_square_concentric_f64`]) on the other.
+    #[inline]
+    #[must_use]
+    pub fn direction_to_square_f64(self, w: DVec3) -> DVec2 {
+        match self {
+            Self::Orthographic => w.truncate(),
+            Self::Concentric => disk_to_square_concentric_f64(w.truncate()),
         }
     }
 
@@ -267,6 +306,46 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The f64 inverse undoes the f64 map to 10⁻¹⁵ everywhere, the rim band included: square
+    /// points 10⁻¹² inside the edge, directions 10⁻⁶ above the horizon, where f32's inverse
+    /// cannot tell the point from the edge.
+    #[test]
+    fn the_f64_inverse_round_trips_to_the_rim() {
+        let edge = 1.0 - 1e-12;
+        let rim = (0..=400).flat_map(|i| {
+            let t = 2.0 * f64::from(i) / 400.0 - 1.0;
+            [
+                DVec2::new(edge, t * edge),
+                DVec2::new(-edge, t * edge),
+                DVec2::new(t * edge, edge),
+                DVec2::new(t * edge, -edge),
+            ]
+        });
+        let inner: alloc::vec::Vec<DVec2> = grid().map(|p| p.as_dvec2() * 0.999).collect();
+        for map in [DiskMap::Orthographic, DiskMap::Concentric] {
+            for p in rim.clone().chain(inner.iter().copied()) {
+                let Some(w) = map.square_to_direction_f64(p) else {
+                    continue;
+                };
+                let q = map.direction_to_square_f64(w);
+                assert!((p - q).length() < 1e-15 * 8.0, "{map:?}: {p} -> {w} -> {q}");
+            }
+        }
+        // A direction 10⁻⁶ above the horizon: f64 keeps it off the edge, f32 does not.
+        let w = DVec3::new(0.6, -0.8, 0.0) * (1.0 - 0.5e-12) + DVec3::Z * 1e-6;
+        let w = w.normalize();
+        let q = DiskMap::Concentric.direction_to_square_f64(w);
+        assert!(q.x.abs().max(q.y.abs()) < 1.0, "{q}");
+        assert!(q.x.abs().max(q.y.abs()) > 1.0 - 1e-11, "{q}");
+        // Back again, z to the conditioning of √(1 − r²) there (an ulp of r moves z by
+        // 10⁻¹⁰), yet well above the horizon.
+        let back = DiskMap::Concentric.square_to_direction_f64(q).unwrap();
+        assert!(
+            (back - w).length() < 1e-9 && back.z > 0.9e-6,
+            "{back} vs {w}"
+        );
     }
 
     #[test]

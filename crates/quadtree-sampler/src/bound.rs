@@ -11,6 +11,54 @@ use alloc::vec::Vec;
 use brdf_core::{Brdf, DiskMap, math as m};
 use glam::{DVec2, DVec3};
 
+/// Rows of a polar box's bound search near its centre edge (see `bound`).
+const POLAR_CENTRE_ROWS: i32 = 12;
+
+/// Scales of the probe around a peak hint inside a node (see `bound`): the grid's spacing
+/// halved 23 times, to 10⁻⁷ of it.
+const HINT_PROBE_SCALES: usize = 24;
+
+/// A tangent axis of the disk (the local frame's x or y).
+#[derive(Clone, Copy)]
+enum Axis {
+    X,
+    Y,
+}
+
+/// A direction of the concentric node `rect` whose disk point shares the hint `w`'s x (or y)
+/// coordinate, near `start` (the hint's square point clamped into the node): alternating
+/// projections onto that line of the disk and onto the node's square, three of each.
+///
+/// Why: an anisotropic lobe that is narrow along a tangent axis is a ridge along a line of
+/// the disk through its peak (Ward with α_x = 0.001: wo.x = −wi.x wherever h.x = 0, a
+/// ridge 10⁻³ wide across the disk). On the orthographic map, clamping the hint into a
+/// node keeps its x or y, so it lands on the ridge wherever the ridge crosses the node; the
+/// concentric map bends the line, and the clamped hint misses it, as do the grid and the
+/// integration of a node wider than the ridge: such nodes looked flat and never split, and
+/// the tree lost up to 17 % of the volume with no bound violation to show it.
+fn hint_line_point(rect: &Rect, start: DVec2, w: DVec3, axis: Axis) -> Option<DVec3> {
+    let map = DiskMap::Concentric;
+    let hi = rect.max - (rect.max - rect.min) * 1e-9;
+    let mut q = start;
+    for _ in 0..3 {
+        let d = map.square_to_direction_f64(q)?.truncate();
+        let on_line = match axis {
+            Axis::X => DVec2::new(w.x, d.y),
+            Axis::Y => DVec2::new(d.x, w.y),
+        };
+        let r2 = on_line.length_squared();
+        let on_disk = if r2 < 1.0 {
+            on_line
+        } else {
+            on_line * ((1.0 - 1e-12) / m::sqrt(r2))
+        };
+        q = brdf_core::maps::disk_to_square_concentric_f64(on_disk).clamp(rect.min, hi);
+    }
+    // (Where the line misses the node the projections stall on its edge: one more point
+    // of the node, harmless.)
+    map.square_to_direction_f64(q)
+}
+
 /// Orthographic: azimuths of points on the unit circle inside `rect`: `n` per arc, ends
 /// included (nudged inside). The arcs' ends are where the circle crosses the rectangle's edges.
 fn rim_arc_points(rect: &Rect, n: usize) -> Vec<f64> {
@@ -401,6 +449,20 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
                 }
             }
         }
+        // A polar box's heights near its centre edge s = 0 move as √s (r = √s), so h/S can
+        // peak a few thousandths of the box from it, between the grid's first two rows (and
+        // a shape that falls along that edge makes it likelier): Cook–Torrance m = 0.67 near
+        // grazing had a bound 3.5 % short there. Rows at s = span·4⁻ᵏ, k = 1…12, at the
+        // grid's azimuths look at it (a polar box is the root's or one of its children's).
+        if prop.chart == Chart::Polar {
+            for k in 1..=POLAR_CENTRE_ROWS {
+                let s = lo.x + span.x * m::pow(0.25, f64::from(k));
+                for j in 0..=g {
+                    let q = DVec2::new(s, lo.y + span.y * j as f64 / g as f64);
+                    consider(self.score(prop, rect, q), q);
+                }
+            }
+        }
         let seed = (seed.0, seed.1.clamp(lo, hi));
         consider(over_shape(seed.0, seed.1), seed.1);
         // Peak hints: inside the node, or projected onto its closest point (a lobe peaked just
@@ -411,12 +473,9 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         // (`PeakHints` holds at most four.)
         let mut inside: [Option<(f64, DVec2)>; 4] = [None; 4];
         for (k, w) in self.hints.iter().enumerate() {
-            let p = match map {
-                DiskMap::Orthographic => DVec2::new(w.x, w.y),
-                DiskMap::Concentric => {
-                    brdf_core::maps::disk_to_square_concentric(w.truncate().as_vec2()).as_dvec2()
-                }
-            };
+            // In f64: a grazing lobe's peak sits 10⁻¹⁰ inside the square's edge, and can be
+            // narrower than f32's resolution there (10⁻⁷ in angle).
+            let p = map.direction_to_square_f64(*w);
             let pc = p.clamp(rect.min, rect.max - (rect.max - rect.min) * 1e-9);
             let Some(wc) = map.square_to_direction_f64(pc) else {
                 continue;
@@ -426,6 +485,14 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
             consider(h, q);
             if pc == p && k < inside.len() {
                 inside[k] = Some((h, q));
+            }
+            if self.hint_lines {
+                for axis in [Axis::X, Axis::Y] {
+                    if let Some(q) = hint_line_point(rect, pc, *w, axis) {
+                        let q = prop.coordinates(map, q).clamp(lo, hi);
+                        consider(self.score(prop, rect, q), q);
+                    }
+                }
             }
         }
         // The three searches are independent: run them side by side (the largest of three
@@ -440,11 +507,40 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         let par = self.par_levels > 0;
         // The climbs from the hints, beside those from the grid's best points (the largest
         // of them all is the same in any order).
+        // A hint's climb starts from the best of a probe at every scale along the chart's
+        // axes (steps of the grid's spacing halved down to 2⁻²³ of it): the lobe's width is
+        // unknown, and where the chart's Jacobian vanishes at the rim the hint's own height
+        // is nearly 0, so the grid-sized first step of a plain climb lands on the diffuse
+        // slope inward (higher than that), and climbs it away from the lobe (Blinn–Phong
+        // n = 3 129 at cos θi = 10⁻⁴ on the concentric map: a bound 12 times too low).
         let hints = || {
             inside
                 .iter()
                 .flatten()
-                .map(|&x| climb(x))
+                .map(|&(h0, q0)| {
+                    let (mut best, mut step) = ((h0, q0), span / g as f64);
+                    let mut s = step;
+                    for _ in 0..HINT_PROBE_SCALES {
+                        for d in [
+                            DVec2::new(s.x, 0.0),
+                            DVec2::new(-s.x, 0.0),
+                            DVec2::new(0.0, s.y),
+                            DVec2::new(0.0, -s.y),
+                        ] {
+                            let c = (q0 + d).clamp(lo, hi);
+                            let hc = self.score(prop, rect, c);
+                            if hc > best.0 {
+                                (best, step) = ((hc, c), s);
+                            }
+                        }
+                        s *= 0.5;
+                    }
+                    if best.0 > 0.0 {
+                        self.compass_search(prop, rect, best.1, best.0, step)
+                    } else {
+                        0.0
+                    }
+                })
                 .fold(0.0, f64::max)
         };
         // (A shaped box's grid is twice as fine: its best point alone is climbed, and a fine

@@ -685,9 +685,7 @@ impl Proposal {
         match self.chart {
             Chart::Square => match map {
                 DiskMap::Orthographic => DVec2::new(w.x, w.y),
-                DiskMap::Concentric => {
-                    brdf_core::maps::disk_to_square_concentric(w.truncate().as_vec2()).as_dvec2()
-                }
+                DiskMap::Concentric => brdf_core::maps::disk_to_square_concentric_f64(w.truncate()),
             },
             Chart::Angle => {
                 let a = m::asin(w.x.clamp(-1.0, 1.0));
@@ -698,8 +696,7 @@ impl Proposal {
             Chart::AngleY => angle_y_coordinates(w),
             Chart::Polar => DVec2::new(w.x * w.x + w.y * w.y, m::atan2(w.y, w.x)),
             Chart::Sine => {
-                let p =
-                    brdf_core::maps::disk_to_square_concentric(w.truncate().as_vec2()).as_dvec2();
+                let p = brdf_core::maps::disk_to_square_concentric_f64(w.truncate());
                 DVec2::new(m::asin(p.x.clamp(-1.0, 1.0)), m::asin(p.y.clamp(-1.0, 1.0)))
             }
         }
