@@ -99,7 +99,8 @@ pub fn concentric_direction_f64(p: DVec2, z: f64) -> DVec3 {
             core::f64::consts::FRAC_PI_2 - core::f64::consts::FRAC_PI_4 * (a / b),
         )
     };
-    DVec3::new(r * m::cos(phi), r * m::sin(phi), z)
+    let (sp, cp) = m::sin_cos_reduced(phi);
+    DVec3::new(r * cp, r * sp, z)
 }
 
 /// The constant Jacobian of [`square_to_disk_concentric`]: disk area per unit square area.

@@ -212,6 +212,35 @@ pub fn sin_cos_small(theta: f64) -> (f64, f64) {
     (theta * estrin(&COEFFS.0), estrin(&COEFFS.1))
 }
 
+/// π/2 in two parts (fdlibm's `pio2_1`, `pio2_1t`): `PIO2_HI` has its low 20 bits zero, so
+/// q·`PIO2_HI` is exact for |q| < 2²⁰, and `PIO2_LO` carries the next 53 bits.
+const PIO2_HI: f64 = 1.570_796_326_734_125_6;
+const PIO2_LO: f64 = 6.077_100_506_506_192e-11;
+
+/// (sin x, cos x) for |x| ≤ 2²⁰·π/2 in plain arithmetic (no call, no table, no branch but
+/// selects): x = q·π/2 + r with |r| ≤ π/4 (π/2 in two parts, so r is exact to rounding),
+/// [`sin_cos_small`] of r, and the pair rotated by the quadrant q. Within a few ulp of the
+/// backend's (absolutely: near a zero of either one). For the polar charts' angles, on every
+/// sample of a polar leaf (the root and its children), where the backend's `sin_cos` call
+/// was a quarter of a cheap model's sample. NaN gives NaN; beyond its domain the reduction
+/// loses accuracy.
+#[inline(always)]
+#[must_use]
+pub fn sin_cos_reduced(x: f64) -> (f64, f64) {
+    // 1.5·2^52: adding it rounds x·2/π to an integer held in the low mantissa bits.
+    const SHIFT: f64 = 6_755_399_441_055_744.0;
+    let qf = x * core::f64::consts::FRAC_2_PI + SHIFT;
+    let q = qf.to_bits();
+    let qd = qf - SHIFT;
+    let r = (x - qd * PIO2_HI) - qd * PIO2_LO;
+    let (s, c) = sin_cos_small(r);
+    // sin(r + qπ/2), cos(r + qπ/2) for q mod 4 = 0, 1, 2, 3:
+    // (s, c), (c, −s), (−s, −c), (−c, s).
+    let (s, c) = if q & 1 == 0 { (s, c) } else { (c, -s) };
+    let flip = |v: f64, neg: bool| f64::from_bits(v.to_bits() ^ (u64::from(neg) << 63));
+    (flip(s, q & 2 != 0), flip(c, q & 2 != 0))
+}
+
 /// ln x for x > 0, in plain arithmetic (no table, no branch, no call), so that a loop of
 /// them vectorises; for x^n = e^{n ln x} at many quadrature nodes (Poulin–Fournier's lobe).
 ///
@@ -260,6 +289,30 @@ mod tests {
             );
         }
         assert_eq!(sin_cos_small(0.0), (0.0, 1.0));
+    }
+
+    /// Within 4 ulp of the backend's sin and cos (absolutely, scaled by the larger of the
+    /// two: each is small near the other's extremes) on [−8π, 8π], with the quadrant's signs
+    /// and the exact values at 0; NaN stays NaN.
+    #[test]
+    fn sin_cos_reduced_is_sin_cos() {
+        for i in -400_000..=400_000 {
+            let x = 8.0 * core::f64::consts::PI * f64::from(i) / 400_000.0;
+            let (s, c) = sin_cos_reduced(x);
+            let tol = 4.0 * f64::EPSILON;
+            assert!((s - sin(x)).abs() <= tol, "sin {x}: {s} vs {}", sin(x));
+            assert!((c - cos(x)).abs() <= tol, "cos {x}: {c} vs {}", cos(x));
+            assert!((s * s + c * c - 1.0).abs() <= tol, "{x}");
+        }
+        assert_eq!(sin_cos_reduced(0.0), (0.0, 1.0));
+        let (s, c) = sin_cos_reduced(3.0);
+        assert!(s > 0.0 && c < 0.0);
+        let (s, c) = sin_cos_reduced(-2.0);
+        assert!(s < 0.0 && c < 0.0);
+        let (s, c) = sin_cos_reduced(-1.0);
+        assert!(s < 0.0 && c > 0.0);
+        let (s, c) = sin_cos_reduced(f64::NAN);
+        assert!(s.is_nan() && c.is_nan());
     }
 
     /// Within 4 ulp of the backend's exp on [−708, 0], exactly 1 at 0, and e^−708 below.

@@ -252,7 +252,7 @@ pub(crate) fn angle_y_coordinates(w: DVec3) -> DVec2 {
 pub fn polar_point(s: f64, phi: f64) -> ChartPoint {
     let s = s.clamp(0.0, 1.0);
     let r = m::sqrt(s);
-    let (sp, cp) = m::sin_cos(phi);
+    let (sp, cp) = m::sin_cos_reduced(phi);
     let p = DVec2::new(r * cp, r * sp);
     ChartPoint {
         p,
@@ -272,7 +272,7 @@ pub fn concentric_polar_point(s: f64, phi: f64) -> ChartPoint {
     use core::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
     let s = s.clamp(0.0, 1.0);
     let r = m::sqrt(s);
-    let (sp, cp) = m::sin_cos(phi);
+    let (sp, cp) = m::sin_cos_reduced(phi);
     // The inverse of the concentric map at (r, φ), φ taken to [−π/4, 7π/4): four wedges,
     // in each of which one coordinate is ±r and the other linear in φ.
     let phi = if phi < -FRAC_PI_4 {
