@@ -25,39 +25,72 @@ enum Axis {
     Y,
 }
 
-/// A direction of the concentric node `rect` whose disk point shares the hint `w`'s x (or y)
-/// coordinate, near `start` (the hint's square point clamped into the node): alternating
-/// projections onto that line of the disk and onto the node's square, three of each.
+/// Rows (or columns) of a concentric node at which [`hint_line_points`] finds its line.
+const HINT_LINE_ROWS: usize = 17;
+
+/// The directions of the node `rect` on the line of the disk through the hint `w` parallel
+/// to a tangent axis (x = w.x for [`Axis::X`], y = w.y for [`Axis::Y`]): one on each of
+/// [`HINT_LINE_ROWS`] evenly spaced rows of the node's square (columns for [`Axis::Y`])
+/// that the line crosses; on the concentric map found by bisection (along a row of the
+/// square its disk x grows monotonically, and its disk y along a column).
 ///
-/// Why: an anisotropic lobe that is narrow along a tangent axis is a ridge along a line of
-/// the disk through its peak (Ward with α_x = 0.001: wo.x = −wi.x wherever h.x = 0, a
-/// ridge 10⁻³ wide across the disk). On the orthographic map, clamping the hint into a
+/// Why: an anisotropic lobe that is narrow along a tangent axis is a ridge along such a
+/// line (Ward with α_x = 0.001: wo.x = −wi.x wherever h.x = 0, a ridge 10⁻³ wide across the
+/// disk; Schlick with p = 0.001 likewise). On the orthographic map, clamping the hint into a
 /// node keeps its x or y, so it lands on the ridge wherever the ridge crosses the node; the
 /// concentric map bends the line, and the clamped hint misses it, as do the grid and the
 /// integration of a node wider than the ridge: such nodes looked flat and never split, and
-/// the tree lost up to 17 % of the volume with no bound violation to show it.
-fn hint_line_point(rect: &Rect, start: DVec2, w: DVec3, axis: Axis) -> Option<DVec3> {
-    let map = DiskMap::Concentric;
+/// the tree lost up to 17 % of the volume with no bound violation to show it. And one point
+/// of the ridge is not enough where the box is shaped, on either map: h/S along the ridge
+/// peaks where the shape is lowest (Schlick p = 0.001, concentric: bounds 6–12 % short).
+fn hint_line_points(map: DiskMap, rect: &Rect, w: DVec3, axis: Axis, out: &mut Vec<DVec3>) {
     let hi = rect.max - (rect.max - rect.min) * 1e-9;
-    let mut q = start;
-    for _ in 0..3 {
-        let d = map.square_to_direction_f64(q)?.truncate();
-        let on_line = match axis {
-            Axis::X => DVec2::new(w.x, d.y),
-            Axis::Y => DVec2::new(d.x, w.y),
+    let (target, along, across) = match axis {
+        Axis::X => (w.x, 0, 1),
+        Axis::Y => (w.y, 1, 0),
+    };
+    let coordinate =
+        |p: DVec2| -> Option<f64> { map.square_to_direction_f64(p).map(|d| d.truncate()[along]) };
+    let point = |t: f64, s: f64| {
+        let mut p = DVec2::ZERO;
+        p[along] = t;
+        p[across] = s;
+        p
+    };
+    let (t0, t1) = (rect.min[along], hi[along]);
+    for j in 0..HINT_LINE_ROWS {
+        let s = rect.min[across]
+            + (hi[across] - rect.min[across]) * j as f64 / (HINT_LINE_ROWS - 1) as f64;
+        let (Some(c0), Some(c1)) = (coordinate(point(t0, s)), coordinate(point(t1, s))) else {
+            continue;
         };
-        let r2 = on_line.length_squared();
-        let on_disk = if r2 < 1.0 {
-            on_line
-        } else {
-            on_line * ((1.0 - 1e-12) / m::sqrt(r2))
-        };
-        q = brdf_core::maps::disk_to_square_concentric_f64(on_disk).clamp(rect.min, hi);
+        if !(c0 <= target && target <= c1) {
+            continue;
+        }
+        if map == DiskMap::Orthographic {
+            // The line is the square's own.
+            if let Some(d) = map.square_to_direction_f64(point(target, s)) {
+                out.push(d);
+            }
+            continue;
+        }
+        let (mut a, mut b) = (t0, t1);
+        for _ in 0..HINT_LINE_BISECTIONS {
+            let mid = 0.5 * (a + b);
+            match coordinate(point(mid, s)) {
+                Some(c) if c < target => a = mid,
+                _ => b = mid,
+            }
+        }
+        if let Some(d) = map.square_to_direction_f64(point(0.5 * (a + b), s)) {
+            out.push(d);
+        }
     }
-    // (Where the line misses the node the projections stall on its edge: one more point
-    // of the node, harmless.)
-    map.square_to_direction_f64(q)
 }
+
+/// Bisection steps of [`hint_line_points`]: 2⁻²⁴ of the node's width, far inside any ridge
+/// a node that wide can hold.
+const HINT_LINE_BISECTIONS: usize = 24;
 
 /// Orthographic: azimuths of points on the unit circle inside `rect`: `n` per arc, ends
 /// included (nudged inside). The arcs' ends are where the circle crosses the rectangle's edges.
@@ -487,11 +520,12 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
                 inside[k] = Some((h, q));
             }
             if self.hint_lines {
-                for axis in [Axis::X, Axis::Y] {
-                    if let Some(q) = hint_line_point(rect, pc, *w, axis) {
-                        let q = prop.coordinates(map, q).clamp(lo, hi);
-                        consider(self.score(prop, rect, q), q);
-                    }
+                let mut on_lines = Vec::with_capacity(2 * HINT_LINE_ROWS);
+                hint_line_points(map, rect, *w, Axis::X, &mut on_lines);
+                hint_line_points(map, rect, *w, Axis::Y, &mut on_lines);
+                for d in on_lines {
+                    let q = prop.coordinates(map, d).clamp(lo, hi);
+                    consider(self.score(prop, rect, q), q);
                 }
             }
         }

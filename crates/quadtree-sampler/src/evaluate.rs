@@ -81,10 +81,9 @@ pub(crate) struct Context<'a, B: Brdf + ?Sized> {
     pub(crate) domain: Domain,
     pub(crate) hints: Vec<DVec3>,
     /// Whether each bound search also looks along the lines of the disk through each hint
-    /// parallel to the tangent axes (`bound::hint_line_point`): on the concentric map, for
-    /// an anisotropic model, whose lobes can be ridges along those lines. (An isotropic
-    /// model has no preferred tangent axis; on the orthographic map the clamped hint
-    /// already lies on both lines.)
+    /// parallel to the tangent axes (`bound::hint_line_points`): for an anisotropic model,
+    /// whose lobes can be ridges along those lines. (An isotropic model has no preferred
+    /// tangent axis.)
     pub(crate) hint_lines: bool,
     /// Absolute floor of every node's integration tolerance: the relative tolerance times an
     /// estimate of the total volume (a node's error below it cannot be seen by any test).
@@ -128,7 +127,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             rule,
             domain,
             hints,
-            hint_lines: config.map == DiskMap::Concentric && !brdf.symmetry().isotropic,
+            hint_lines: !brdf.symmetry().isotropic,
             tol_floor: 0.0,
             estimate: 0.0,
             // Every level: the work of a sharp lobe sits in one quadrant after another, so a
