@@ -5,8 +5,10 @@
 //! The CI part sweeps z = 10⁻ᵏ at a few k; the full sweep (k = 1…45, every model, both maps,
 //! every mode) is behind `#[ignore]`:
 //! `cargo test --release -p quadtree-sampler --features rayon --test robustness -- --ignored`
-//! (about 7 minutes on 2 cores). `cargo run --release -p quadtree-sampler --features rayon
-//! --example grazing_sweep` prints the table (time, nodes, E[T], albedo, outcome).
+//! (about 9 minutes on 2 cores, with the random sweep below).
+//! `cargo run --release -p quadtree-sampler --features rayon --example grazing_sweep` prints
+//! the table (time, nodes, E[T], albedo, outcome). A random sweep of 400 trees for bound
+//! violations is behind `#[ignore]` too (`random_builds_meet_no_bound_violation`).
 
 use brdf_core::geometry::GRAZING_COS;
 use brdf_core::{Brdf, DiskMap, registry};
@@ -425,4 +427,99 @@ fn bounds_a_random_sweep_found_short_now_hold() {
             q.stats()
         );
     }
+}
+
+/// A random sweep like the one behind `bounds_a_random_sweep_found_short_now_hold`, kept so
+/// that it can be rerun: 400 random trees (a random continuous model but HTSG and
+/// Poulin–Fournier, for time; parameters with 15 % of the draws on each end of their ranges;
+/// a random wi, a quarter of them with cos θi in [10⁻⁴, 10⁻²]; a random map), 200 000
+/// samples each, and no bound violation allowed. About 1.5 minutes on one core:
+/// `cargo test --release -p quadtree-sampler --test robustness random_builds -- --ignored`.
+/// At f37796b (before the fixes the other test names) it fails: 10 of the 400 trees (Ward
+/// and Schlick ridges on both maps, Strauss), 1 to 437 violations each. Known to fail in a
+/// sweep with other draws: Strauss with smoothness 0.99 at cos θi = 0.006 on the
+/// orthographic map, where the bound search climbs to a local maximum of f·J 6 % below the
+/// leaf's largest (1 violation in 200 000).
+#[test]
+#[ignore = "about 1.5 minutes: run with --ignored"]
+fn random_builds_meet_no_bound_violation() {
+    use brdf_core::{ParamKind, ParamValue};
+    use rand_core::Rng;
+    let mut r = Pcg64::seed_from_u64(5);
+    let mut u = || (r.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
+    let models: Vec<_> = registry::models()
+        .iter()
+        .filter(|m| !m.delta && !m.measured && m.name != "htsg" && m.name != "poulin-fournier")
+        .collect();
+    let mut failures = Vec::new();
+    for case in 0..400 {
+        let info = models[((u() * models.len() as f32) as usize).min(models.len() - 1)];
+        let mut p = info.defaults();
+        for spec in info.params {
+            let mut lerp = || {
+                let t = u();
+                let t = if t < 0.15 {
+                    0.0
+                } else if t > 0.85 {
+                    1.0
+                } else {
+                    (t - 0.15) / 0.7
+                };
+                if spec.max / spec.min.max(1e-3) > 1e3 {
+                    ((spec.max.min(1e5) + 1.0).ln() * t).exp() - 1.0
+                } else {
+                    spec.min + (spec.max - spec.min) * t
+                }
+                .clamp(spec.min, spec.max)
+            };
+            let v = match spec.kind {
+                ParamKind::Scalar => ParamValue::Scalar(lerp()),
+                ParamKind::Rgb => {
+                    let (a, b) = (lerp(), lerp());
+                    ParamValue::Rgb(Vec3::new(a, b, a))
+                }
+                ParamKind::Path | ParamKind::Choice(_) => continue,
+            };
+            // A constraint between parameters (kd + ks ≤ 1) refuses some draws: the
+            // default stays.
+            let _ = p.set(spec.name, v);
+        }
+        let Ok(b) = info.build(&p) else { continue };
+        let ct = match (u() * 4.0) as u32 {
+            0 => 1e-4 * (1.0 + 99.0 * u()),
+            1 => 0.02 * u(),
+            _ => u(),
+        };
+        let phi = u() * std::f32::consts::TAU;
+        let s = (1.0 - ct * ct).max(0.0).sqrt();
+        let wi = Vec3::new(s * phi.cos(), s * phi.sin(), ct.max(1e-6));
+        let map = if u() < 0.5 {
+            DiskMap::Concentric
+        } else {
+            DiskMap::Orthographic
+        };
+        let cfg = BuildConfig {
+            map,
+            ..BuildConfig::default()
+        };
+        // A zero f_r is a typed error, as it should be; nothing to sample.
+        let Ok(q) = QuadtreeSampler::new(&*b, wi, cfg) else {
+            continue;
+        };
+        let mut rng = Pcg64::seed_from_u64(case);
+        for _ in 0..200_000 {
+            let _ = q.sample(&mut rng);
+        }
+        if q.bound_violations() > 0 {
+            failures.push(format!(
+                "case {case}: {} {:?} wi {wi} {map:?}: {} violations",
+                info.name,
+                p.iter()
+                    .map(|(s, v)| format!("{}={v:?}", s.name))
+                    .collect::<Vec<_>>(),
+                q.bound_violations()
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
