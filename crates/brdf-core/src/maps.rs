@@ -309,7 +309,7 @@ mod tests {
         }
     }
 
-    /// The f64 inverse undoes the f64 map to 10⁻¹⁵ everywhere, the rim band included: square
+    /// The f64 inverse undoes the f64 map to 8·10⁻¹⁵ everywhere, the rim band included: square
     /// points 10⁻¹² inside the edge, directions 10⁻⁶ above the horizon, where f32's inverse
     /// cannot tell the point from the edge.
     #[test]

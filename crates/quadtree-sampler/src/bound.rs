@@ -505,6 +505,7 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         // climb from the grid's best points (on the diffuse plateau) never reaches.
         // (`PeakHints` holds at most four.)
         let mut inside: [Option<(f64, DVec2)>; 4] = [None; 4];
+        let mut on_lines = Vec::new();
         for (k, w) in self.hints.iter().enumerate() {
             // In f64: a grazing lobe's peak sits 10⁻¹⁰ inside the square's edge, and can be
             // narrower than f32's resolution there (10⁻⁷ in angle).
@@ -520,10 +521,10 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
                 inside[k] = Some((h, q));
             }
             if self.hint_lines {
-                let mut on_lines = Vec::with_capacity(2 * HINT_LINE_ROWS);
+                on_lines.clear();
                 hint_line_points(map, rect, *w, Axis::X, &mut on_lines);
                 hint_line_points(map, rect, *w, Axis::Y, &mut on_lines);
-                for d in on_lines {
+                for &d in &on_lines {
                     let q = prop.coordinates(map, d).clamp(lo, hi);
                     consider(self.score(prop, rect, q), q);
                 }
@@ -540,8 +541,7 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         };
         let par = self.par_levels > 0;
         // The climbs from the hints, beside those from the grid's best points (the largest
-        // of them all is the same in any order).
-        // A hint's climb starts from the best of a probe at every scale along the chart's
+        // of them all is the same in any order). A hint's climb starts from the best of a probe at every scale along the chart's
         // axes (steps of the grid's spacing halved down to 2⁻²³ of it): the lobe's width is
         // unknown, and where the chart's Jacobian vanishes at the rim the hint's own height
         // is nearly 0, so the grid-sized first step of a plain climb lands on the diffuse
