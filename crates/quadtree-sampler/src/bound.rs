@@ -14,7 +14,7 @@ use glam::{DVec2, DVec3};
 /// Rows of a polar box's bound search near its centre edge (see `bound`).
 const POLAR_CENTRE_ROWS: i32 = 12;
 
-/// Scales of the probe around a peak hint inside a node (see `bound`): the grid's spacing
+/// Scales of the probe around a peak hint in or near a node (see `bound`): the grid's spacing
 /// halved 23 times, to 10⁻⁷ of it.
 const HINT_PROBE_SCALES: usize = 24;
 
@@ -181,6 +181,101 @@ fn rim_points(map: DiskMap, rect: &Rect, n: usize) -> Vec<(f64, f64)> {
     }
 }
 
+/// The range of the chart's second coordinate that the node's region covers at first
+/// coordinate `a`: in the angle charts, t between the node's edges at that a (`None` where
+/// the row holds no direction); elsewhere the box's own range.
+fn node_row(prop: &Proposal, rect: &Rect, a: f64) -> Option<(f64, f64)> {
+    match prop.chart {
+        Chart::Angle | Chart::AngleY => {
+            let ca = m::cos(a);
+            if ca <= 0.0 {
+                return None;
+            }
+            let lim = |y: f64| m::asin((y / ca).clamp(-1.0, 1.0));
+            let (ylo, yhi) = if prop.chart == Chart::Angle {
+                (rect.min.y, rect.max.y)
+            } else {
+                (rect.min.x, rect.max.x)
+            };
+            Some((lim(ylo), lim(yhi).min(prop.hi.y)))
+        }
+        Chart::Square | Chart::Sine | Chart::Polar => Some((prop.lo.y, prop.hi.y)),
+    }
+}
+
+/// Coordinates a compass search climbs in ([`Context::compass_search`]): the chart's own, or
+/// in the angle charts the node's rows, (a, v) with v ∈ [0, 1) the fraction of the node's
+/// row at a ([`node_row`]), in which the node's region is the rectangle [lo.x, hi.x] × [0, 1).
+///
+/// Why the rows: in the angle charts the node's edges across the rows are curves
+/// (t = asin(y/cos a)). A maximum on such an edge (Strauss at grazing incidence, its lobe cut
+/// by the node's edge) is a corner for axis steps in (a, t): one step leaves the node, the
+/// other goes down, and the climb stops short (a bound 5 % low). In (a, v) the edge is a
+/// coordinate line, which the climb follows.
+#[derive(Clone, Copy)]
+struct SearchSpace<'p> {
+    prop: &'p Proposal,
+    rect: Rect,
+    rows: bool,
+}
+
+/// The largest fraction of a node's row a search point takes: the node's upper edges are open.
+const ROW_TOP: f64 = 1.0 - 1e-12;
+
+impl<'p> SearchSpace<'p> {
+    /// The chart's own coordinates.
+    fn chart(prop: &'p Proposal, rect: &Rect) -> Self {
+        Self {
+            prop,
+            rect: *rect,
+            rows: false,
+        }
+    }
+
+    /// The node's row coordinates (the chart's own outside the angle charts).
+    fn rows(prop: &'p Proposal, rect: &Rect) -> Self {
+        Self {
+            prop,
+            rect: *rect,
+            rows: matches!(prop.chart, Chart::Angle | Chart::AngleY),
+        }
+    }
+
+    /// The search box's corners.
+    fn bounds(&self) -> (DVec2, DVec2) {
+        if self.rows {
+            (
+                DVec2::new(self.prop.lo.x, 0.0),
+                DVec2::new(self.prop.hi.x, ROW_TOP),
+            )
+        } else {
+            (self.prop.lo, self.prop.hi)
+        }
+    }
+
+    /// The search point of chart point `q`.
+    fn search_point(&self, q: DVec2) -> DVec2 {
+        if !self.rows {
+            return q;
+        }
+        match node_row(self.prop, &self.rect, q.x) {
+            Some((t0, t1)) if t1 > t0 => {
+                DVec2::new(q.x, ((q.y - t0) / (t1 - t0)).clamp(0.0, ROW_TOP))
+            }
+            _ => DVec2::new(q.x, 0.0),
+        }
+    }
+
+    /// The chart point of search point `v` (`None` where its row is empty).
+    fn chart_point(&self, v: DVec2) -> Option<DVec2> {
+        if !self.rows {
+            return Some(v);
+        }
+        let (t0, t1) = node_row(self.prop, &self.rect, v.x)?;
+        Some(DVec2::new(v.x, t0 + (t1 - t0) * v.y))
+    }
+}
+
 /// Applies `fill` to every item, in halves side by side when `parallel` (down to 32 items a
 /// part): each item is filled alone, so the results do not depend on the split.
 fn fill_in_halves<T: Send>(items: &mut [T], parallel: bool, fill: &(impl Fn(&mut T) + Sync)) {
@@ -268,21 +363,8 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         // node's edges at each a (a sliver of the box may hold all of the node).
         for i in 0..=g {
             let a = lo.x + span.x * i as f64 / g as f64;
-            let (t0, t1) = match prop.chart {
-                Chart::Angle | Chart::AngleY => {
-                    let ca = m::cos(a);
-                    if ca <= 0.0 {
-                        continue;
-                    }
-                    let lim = |y: f64| m::asin((y / ca).clamp(-1.0, 1.0));
-                    let (ylo, yhi) = if prop.chart == Chart::Angle {
-                        (rect.min.y, rect.max.y)
-                    } else {
-                        (rect.min.x, rect.max.x)
-                    };
-                    (lim(ylo), lim(yhi).min(hi.y))
-                }
-                Chart::Square | Chart::Sine | Chart::Polar => (lo.y, hi.y),
+            let Some((t0, t1)) = node_row(prop, rect, a) else {
+                continue;
             };
             for j in 0..=g {
                 // Pull the upper ends in by a hair: the node's upper edges are open.
@@ -502,9 +584,15 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         // outside is largest on the near edge). A hint inside the node is also climbed from
         // below, whatever its rank: in a chart whose Jacobian vanishes at the rim, a lobe
         // peaked on the rim has a small height there and its maximum just inside, which a
-        // climb from the grid's best points (on the diffuse plateau) never reaches.
+        // climb from the grid's best points (on the diffuse plateau) never reaches. So is a
+        // hint outside the node but within the node's width of it: its projection need not
+        // be where the node's part of the lobe is largest (Cook–Torrance m = 0.037 at
+        // cos θi = 0.02: masking zeroes the lobe at the mirror direction, which lies just
+        // beyond the node's edge, and the lobe's tail along that edge peaks 0.007 further in,
+        // twice the diffuse level the rest of the node has: a bound of the diffuse level).
         // (`PeakHints` holds at most four.)
-        let mut inside: [Option<(f64, DVec2)>; 4] = [None; 4];
+        let mut climbed: [Option<(f64, DVec2)>; 4] = [None; 4];
+        let width = (rect.max - rect.min).max_element();
         let mut on_lines = Vec::new();
         for (k, w) in self.hints.iter().enumerate() {
             // In f64: a grazing lobe's peak sits 10⁻¹⁰ inside the square's edge, and can be
@@ -517,8 +605,8 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
             let q = prop.coordinates(map, wc).clamp(lo, hi);
             let h = self.score(prop, rect, q);
             consider(h, q);
-            if pc == p && k < inside.len() {
-                inside[k] = Some((h, q));
+            if (pc == p || (p - pc).length() <= width) && k < climbed.len() {
+                climbed[k] = Some((h, q));
             }
             if self.hint_lines {
                 on_lines.clear();
@@ -541,14 +629,15 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         };
         let par = self.par_levels > 0;
         // The climbs from the hints, beside those from the grid's best points (the largest
-        // of them all is the same in any order). A hint's climb starts from the best of a probe at every scale along the chart's
-        // axes (steps of the grid's spacing halved down to 2⁻²³ of it): the lobe's width is
+        // of them all is the same in any order). A hint's climb starts from the best of a
+        // probe at every scale along the chart's axes (steps of the grid's spacing halved
+        // down to 2⁻²³ of it): the lobe's width is
         // unknown, and where the chart's Jacobian vanishes at the rim the hint's own height
         // is nearly 0, so the grid-sized first step of a plain climb lands on the diffuse
         // slope inward (higher than that), and climbs it away from the lobe (Blinn–Phong
         // n = 3 129 at cos θi = 10⁻⁴ on the concentric map: a bound 12 times too low).
         let hints = || {
-            inside
+            climbed
                 .iter()
                 .flatten()
                 .map(|&(h0, q0)| {
@@ -632,8 +721,12 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         RimProbe::Bounded(limit)
     }
 
-    /// Hill-climbs h/S (h for a flat box) from q0 with axis steps, halving them when no
-    /// step improves.
+    /// Hill-climbs h/S (h for a flat box) from q0 with axis steps of the chart, halving them
+    /// when no step improves; in the angle charts the climb then goes on from where it
+    /// stopped in the node's row coordinates ([`SearchSpace`]), which follow the node's
+    /// curved edges. (Each climb alone misses maxima the other finds: the chart's steps stop
+    /// at a curved edge, and the rows, whose lengths vary with a, bend the chart's straight
+    /// ridges.)
     fn compass_search(
         &self,
         prop: &Proposal,
@@ -642,7 +735,23 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         h0: f64,
         step0: DVec2,
     ) -> f64 {
-        let (mut q, mut h, mut step) = (q0, h0, step0);
+        let chart = SearchSpace::chart(prop, rect);
+        let (q, h) = self.climb(&chart, q0, h0, step0);
+        if !matches!(prop.chart, Chart::Angle | Chart::AngleY) {
+            return h;
+        }
+        let rows = SearchSpace::rows(prop, rect);
+        let span = prop.hi.y - prop.lo.y;
+        let step = DVec2::new(step0.x, if span > 0.0 { step0.y / span } else { 0.0 });
+        self.climb(&rows, q, h, step).1
+    }
+
+    /// The compass search itself in `space`, from chart point q0 of score h0 with first steps
+    /// `step0` (in `space`'s coordinates): the chart point where it stopped and its score.
+    fn climb(&self, space: &SearchSpace<'_>, q0: DVec2, h0: f64, step0: DVec2) -> (DVec2, f64) {
+        let (prop, rect) = (space.prop, &space.rect);
+        let (lo, hi) = space.bounds();
+        let (mut v, mut q, mut h, mut step) = (space.search_point(q0), q0, h0, step0);
         let stop = step0 * 1e-4;
         let mut evals = 0;
         while (step.x > stop.x || step.y > stop.y) && evals < 400 {
@@ -653,11 +762,14 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
                 DVec2::new(0.0, step.y),
                 DVec2::new(0.0, -step.y),
             ] {
-                let c = (q + d).clamp(prop.lo, prop.hi);
-                let hc = self.score(prop, rect, c);
+                let c = (v + d).clamp(lo, hi);
                 evals += 1;
+                let Some(qc) = space.chart_point(c) else {
+                    continue;
+                };
+                let hc = self.score(prop, rect, qc);
                 if hc > h {
-                    (q, h, moved) = (c, hc, true);
+                    (v, q, h, moved) = (c, qc, hc, true);
                     break;
                 }
             }
@@ -665,6 +777,6 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
                 step *= 0.5;
             }
         }
-        h
+        (q, h)
     }
 }
