@@ -1,7 +1,7 @@
 //! Sampling (seed §2.2, §3, Fig. 3–5): region selection (`seleccionarRegion`), rejection in
 //! the leaf (`muestrear`), and the one interface every sampler of the project implements.
 
-use crate::chart::ChartPoint;
+use crate::chart::{Chart, ChartPoint};
 use crate::config::BuildConfig;
 use crate::error::BuildError;
 use crate::packed::{PackedTree, Selected};
@@ -9,9 +9,9 @@ use crate::proposal::{Prepared, Proposal};
 use crate::tree::{Quadtree, TreeStats, albedo_of_volume};
 use alloc::sync::Arc;
 use brdf_core::geometry::{above_horizon, luminance, unit_direction_above, unit_for_density};
-use brdf_core::{Brdf, BrdfSample};
+use brdf_core::{Brdf, BrdfSample, DiskMap};
 use core::sync::atomic::{AtomicU64, Ordering};
-use glam::{DVec2, Vec2, Vec3};
+use glam::{DVec2, DVec3, Vec2, Vec3};
 use rand_core::Rng;
 
 /// A uniform f64 in [0, 1) from 53 random bits.
@@ -104,7 +104,9 @@ pub(crate) fn rejection_in_leaf<R: Rng + ?Sized>(
     if m <= 0.0 || m.is_nan() {
         return None;
     }
-    const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
+    if prop.chart == Chart::Polar && prop.shape.is_flat() && tree.map() == DiskMap::Orthographic {
+        return polar_disk_trials(leaf, m, eval, rng, violations);
+    }
     // A flat leaf's loop carries no shape; a shaped leaf draws its point with density ∝ S
     // and its height under M·S there, from its shape's sums and values prepared once.
     if prop.shape.is_flat() {
@@ -121,6 +123,58 @@ pub(crate) fn rejection_in_leaf<R: Rng + ?Sized>(
         };
         trials(tree, leaf, &prop, eval, rng, violations, shaped)
     }
+}
+
+/// 2⁻³²: a 32-bit half of a 64-bit draw to [0, 1).
+const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
+
+/// The trials of [`rejection_in_leaf`] in a flat polar leaf on the orthographic map (the
+/// root, or one of its children: a quarter of the disk). Its proposal, uniform in (s, φ) over
+/// the node's sector, is the uniform density on the node's part of the disk: drawn here as a
+/// point uniform in the node's square, drawn again while it falls outside the disk (before
+/// any evaluation, and not counted as a trial: it is the proposal's own draw), which spares
+/// each trial the sine, cosine and square root of the (s, φ) chart (a quarter of a Lambert
+/// sample). Accepted points have the same law, f·(uniform on the disk), so the sample's pdf
+/// is unchanged. At most [`MAX_TRIALS`] draws of either kind: an RNG whose points all miss
+/// the disk gives `None`, never a hang.
+#[inline(always)]
+fn polar_disk_trials<R: Rng + ?Sized>(
+    leaf: &Selected,
+    m: f64,
+    eval: impl Fn(Vec3) -> Vec3,
+    rng: &mut R,
+    violations: &AtomicU64,
+) -> Option<(ChartPoint, Vec3, Vec3, u32)> {
+    let jacobian = crate::chart::polar_jacobian(DiskMap::Orthographic);
+    let (lo, side) = (leaf.rect.min, (leaf.rect.max - leaf.rect.min));
+    let mut trials = 0;
+    for _ in 0..MAX_TRIALS {
+        let r = rng.next_u64();
+        let p = lo + side * DVec2::new((r >> 32) as f64, (r & 0xffff_ffff) as f64) * TO_UNIT;
+        let s = p.length_squared();
+        if s >= 1.0 {
+            continue;
+        }
+        trials += 1;
+        let z = m * uniform_f64(rng);
+        let c = ChartPoint {
+            p,
+            w: DVec3::new(p.x, p.y, brdf_core::math::sqrt(1.0 - s)),
+            jacobian,
+        };
+        // (Unit in f64 as the polar chart's directions are: rounded to f32 it is as near unit
+        // as an f32 renormalisation would make it.)
+        let wo = c.w.as_vec3();
+        let f = eval(wo);
+        let h = f64::from(luminance(f)) * jacobian;
+        if h > m {
+            violations.fetch_add(1, Ordering::Relaxed);
+        }
+        if z < h {
+            return Some((c, wo, f, trials));
+        }
+    }
+    None
 }
 
 /// The trials of [`rejection_in_leaf`], `point` giving a trial's box coordinates and its

@@ -601,3 +601,46 @@ fn random_builds_meet_no_bound_violation() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// An RNG that returns all ones: every proposal point lands on the far corner of its box.
+struct AllOnes;
+
+impl rand_core::TryRng for AllOnes {
+    type Error = rand_core::Infallible;
+    fn try_next_u32(&mut self) -> Result<u32, Self::Error> {
+        Ok(u32::MAX)
+    }
+    fn try_next_u64(&mut self) -> Result<u64, Self::Error> {
+        Ok(u64::MAX)
+    }
+    fn try_fill_bytes(&mut self, dst: &mut [u8]) -> Result<(), Self::Error> {
+        dst.fill(0xff);
+        Ok(())
+    }
+}
+
+/// A caller's broken RNG ends a sample (`None`, counted as given up), never hangs it: here
+/// in a flat polar leaf (Lambert's tree is one, on the orthographic map), whose proposal
+/// draws its point again while it misses the disk (all ones puts it at the square's corner,
+/// outside), and in a square leaf (Phong's glossy tree), whose trials never accept.
+#[test]
+fn a_broken_rng_gives_up_instead_of_hanging() {
+    use quadtree_sampler::chart::Chart;
+    for (name, params) in [("lambert", &[][..]), ("phong", &["n=1000"][..])] {
+        let b = model(name, params);
+        let q = QuadtreeSampler::new(
+            &*b,
+            Vec3::new(0.3, 0.2, 0.9).normalize(),
+            BuildConfig::default(),
+        )
+        .unwrap();
+        if name == "lambert" {
+            let leaves = q.tree().leaves();
+            assert_eq!(leaves.len(), 1);
+            assert_eq!(leaves[0].proposal.chart, Chart::Polar);
+            assert!(leaves[0].proposal.shape.is_flat());
+        }
+        assert!(q.sample(&mut AllOnes).is_none(), "{name}");
+        assert_eq!(q.gave_up(), 1, "{name}");
+    }
+}
