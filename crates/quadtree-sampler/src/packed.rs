@@ -559,6 +559,23 @@ impl PackedTree {
             .collect()
     }
 
+    /// The bound M of a selected leaf sampled in a flat polar box (0 for a leaf that holds
+    /// nothing), `None` for every other leaf: the one proposal
+    /// [`crate::sampler::rejection_in_leaf`] draws from without building it (its box is the
+    /// node's part of the disk).
+    #[inline(always)]
+    pub(crate) fn flat_polar_bound(&self, leaf: &Selected) -> Option<f64> {
+        let n = self.nodes[leaf.index];
+        // (A polar leaf is flat when its shape bits are 0: `PackedNode::shape`.)
+        (n.chart() == Chart::Polar && n.link & SHAPE_MASK == 0).then(|| {
+            if n.is_live_leaf() {
+                f64::from(f32::from_bits(n.data[0]))
+            } else {
+                0.0
+            }
+        })
+    }
+
     /// A selected leaf's rejection proposal and bound M (0 for a leaf that holds nothing).
     /// (Always inlined: a sample's first step, whose result the trials keep in registers.)
     #[inline(always)]

@@ -1,7 +1,7 @@
 //! Sampling (seed §2.2, §3, Fig. 3–5): region selection (`seleccionarRegion`), rejection in
 //! the leaf (`muestrear`), and the one interface every sampler of the project implements.
 
-use crate::chart::{Chart, ChartPoint};
+use crate::chart::ChartPoint;
 use crate::config::BuildConfig;
 use crate::error::BuildError;
 use crate::packed::{PackedTree, Selected};
@@ -99,13 +99,20 @@ pub(crate) fn rejection_in_leaf<R: Rng + ?Sized>(
     rng: &mut R,
     violations: &AtomicU64,
 ) -> Option<(ChartPoint, Vec3, Vec3, u32)> {
-    let (prop, m) = tree.proposal(leaf);
     // M is 0 for a leaf that holds nothing (selected only when the whole tree is empty).
-    if m <= 0.0 || m.is_nan() {
-        return None;
+    let holds = |m: f64| m > 0.0 && !m.is_nan();
+    if tree.map() == DiskMap::Orthographic
+        && let Some(m) = tree.flat_polar_bound(leaf)
+    {
+        return if holds(m) {
+            polar_disk_trials(leaf, m, eval, rng, violations)
+        } else {
+            None
+        };
     }
-    if prop.chart == Chart::Polar && prop.shape.is_flat() && tree.map() == DiskMap::Orthographic {
-        return polar_disk_trials(leaf, m, eval, rng, violations);
+    let (prop, m) = tree.proposal(leaf);
+    if !holds(m) {
+        return None;
     }
     // A flat leaf's loop carries no shape; a shaped leaf draws its point with density ∝ S
     // and its height under M·S there, from its shape's sums and values prepared once.
