@@ -35,7 +35,10 @@ pub struct BuildConfig {
     /// it times the total volume). Default 1e-6: far below the statistical noise of 10⁸
     /// samples in one leaf.
     pub integration_tolerance: f64,
-    /// Extra levels of adaptive integration below a node. Default 8.
+    /// Extra levels of adaptive integration below a node. Default 8. Deep nodes take fewer:
+    /// no integration cell is finer than 2⁻²² of the square (a few f32 steps of a direction,
+    /// below which f_r, evaluated at f32 directions, is a staircase that refining cannot
+    /// resolve).
     pub integration_depth: u8,
     /// Maximum node depth (root = 0). Default 20.
     pub max_depth: u8,

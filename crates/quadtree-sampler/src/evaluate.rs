@@ -103,6 +103,11 @@ pub(crate) struct Context<'a, B: Brdf + ?Sized> {
     pub(crate) per_application: u64,
 }
 
+/// The base-2 logarithm of the smallest integration cell's side (the square is [−1, 1]²,
+/// side 2¹): 2⁻²² ≈ 2.4·10⁻⁷, four f32 steps of a coordinate near 1
+/// ([`Context::integration_depth`]).
+pub(crate) const FINEST_CELL_LOG2: i32 = -22;
+
 impl<'a, B: Brdf + ?Sized> Context<'a, B> {
     /// The context, and the root's integration cells (the estimate of the total volume is an
     /// adaptive integration of the root, which the root's own evaluation then continues).
@@ -227,13 +232,14 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         let mut cell = cells.unwrap_or_else(|| Cell::once(self.domain, rect, &self.rule, &f));
         let mut peak = cell.peak;
         let tol = (self.config.integration_tolerance * cell.value.abs()).max(self.tol_floor);
+        let depth = self.integration_depth(rect);
         let v1 = refine_cells(
             self.domain,
             rect,
             &mut cell,
             &self.rule,
             tol,
-            u32::from(self.config.integration_depth),
+            depth,
             &f,
             &mut peak,
             self.par_levels,
@@ -241,9 +247,24 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         .max(0.0);
         // The node's integration as if nothing were memoised (so the count, and the budget's
         // verdict, do not depend on the cache).
-        let depth = u32::from(self.config.integration_depth);
         *spent += (1 + cell.applications(tol, depth)) * self.per_application;
         Integrated::Inside { v1, peak, cell }
+    }
+
+    /// The levels of adaptive integration below the node `rect`: the configured
+    /// `integration_depth`, but no finer than cells of side 2^[`FINEST_CELL_LOG2`] (at least
+    /// one level). f is evaluated at f32 directions, a few 10⁻⁸ apart: a finer cell holds a
+    /// handful of distinct directions, and f there is a staircase whose steps the error
+    /// estimate never sees converge. A sharp lobe at grazing incidence (Cook–Torrance
+    /// m = 0.001 at cos θi = 0.006, concentric map) put depth-18 nodes (side 7.6·10⁻⁶) on it,
+    /// each refined to all 8 levels everywhere: 3–9 million evaluations a node, the build
+    /// stopped by its evaluation budget after 17 s with 217 nodes.
+    pub(crate) fn integration_depth(&self, rect: &Rect) -> u32 {
+        // The side is a power of two (dyadic squares): its exponent, read from its bits.
+        let side = rect.max.x - rect.min.x;
+        let exponent = ((side.to_bits() >> 52) & 0x7ff) as i32 - 1023;
+        let room = (exponent - FINEST_CELL_LOG2).max(1) as u32;
+        u32::from(self.config.integration_depth).min(room)
     }
 
     /// A node evaluation's second half: its proposal and bound M, from the v1 and peak of
