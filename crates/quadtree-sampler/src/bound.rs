@@ -631,11 +631,11 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         // The climbs from the hints, beside those from the grid's best points (the largest
         // of them all is the same in any order). A hint's climb starts from the best of a
         // probe at every scale along the chart's axes (steps of the grid's spacing halved
-        // down to 2⁻²³ of it): the lobe's width is
-        // unknown, and where the chart's Jacobian vanishes at the rim the hint's own height
-        // is nearly 0, so the grid-sized first step of a plain climb lands on the diffuse
-        // slope inward (higher than that), and climbs it away from the lobe (Blinn–Phong
-        // n = 3 129 at cos θi = 10⁻⁴ on the concentric map: a bound 12 times too low).
+        // down to 2⁻²³ of it): the lobe's width is unknown, and where the chart's Jacobian
+        // vanishes at the rim the hint's own height is nearly 0, so the grid-sized first
+        // step of a plain climb lands on the diffuse slope inward (higher than that), and
+        // climbs it away from the lobe (Blinn–Phong n = 3 129 at cos θi = 10⁻⁴ on the
+        // concentric map: a bound 12 times too low).
         let hints = || {
             climbed
                 .iter()
@@ -735,12 +735,11 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         h0: f64,
         step0: DVec2,
     ) -> f64 {
-        let chart = SearchSpace::chart(prop, rect);
-        let (q, h) = self.climb(&chart, q0, h0, step0);
-        if !matches!(prop.chart, Chart::Angle | Chart::AngleY) {
+        let (q, h) = self.climb(&SearchSpace::chart(prop, rect), q0, h0, step0);
+        let rows = SearchSpace::rows(prop, rect);
+        if !rows.rows {
             return h;
         }
-        let rows = SearchSpace::rows(prop, rect);
         let span = prop.hi.y - prop.lo.y;
         let step = DVec2::new(step0.x, if span > 0.0 { step0.y / span } else { 0.0 });
         self.climb(&rows, q, h, step).1
