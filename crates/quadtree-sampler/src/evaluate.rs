@@ -443,10 +443,11 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         }
         let prop = Proposal { shape, ..flat };
         let g = self.grid_steps(&prop) as u64 + 1;
-        // (The grid, hints and searches, four more for a fine shape's quarters; the rim band
-        // where there is one.)
+        // (The grid, hints and searches, four more for a fine shape's quarters, searches
+        // along the edges; the rim band where there is one.)
         let quarters = if shape.grid().is_some() { 1600 } else { 0 };
-        *spent += g * g + 1300 + quarters + if rim_limit.is_some() { 7 * 66 } else { 0 };
+        let edges = 4 * 3 * 22;
+        *spent += g * g + 1300 + quarters + edges + if rim_limit.is_some() { 7 * 66 } else { 0 };
         let known = Known {
             coarse: Some(&grid[..coarse_len]),
             rim_band: &rim_band,
