@@ -447,7 +447,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         // along the edges; the rim band where there is one.)
         let quarters = if shape.grid().is_some() { 1600 } else { 0 };
         let edges = 4 * 3 * 22;
-        *spent += g * g + 1300 + quarters + edges + if rim_limit.is_some() { 7 * 66 } else { 0 };
+        *spent += g * g + 1300 + quarters + edges + if rim_limit.is_some() { 13 * 66 } else { 0 };
         let known = Known {
             coarse: Some(&grid[..coarse_len]),
             rim_band: &rim_band,
