@@ -812,7 +812,7 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
         for &i in peaks.iter().take(EDGE_PEAKS) {
             let mut a = profile[i.saturating_sub(1)].0;
             let mut b = profile[(i + 1).min(n - 1)].0;
-            let stop = (b - a) * 1e-4;
+            let stop = (b - a) * 1e-3;
             let (mut c, mut d) = (b - INV_PHI * (b - a), a + INV_PHI * (b - a));
             let (mut fc, mut fd) = (at(c), at(d));
             found = found.max(fc).max(fd);

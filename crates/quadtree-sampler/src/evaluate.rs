@@ -446,7 +446,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         // (The grid, hints and searches, four more for a fine shape's quarters, searches
         // along the edges; the rim band where there is one.)
         let quarters = if shape.grid().is_some() { 1600 } else { 0 };
-        let edges = 4 * 3 * 22;
+        let edges = 4 * 3 * 17;
         *spent += g * g + 1300 + quarters + edges + if rim_limit.is_some() { 13 * 66 } else { 0 };
         let known = Known {
             coarse: Some(&grid[..coarse_len]),
