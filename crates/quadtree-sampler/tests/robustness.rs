@@ -532,7 +532,15 @@ fn a_maximum_on_a_curved_leaf_edge_is_bounded() {
 /// inside, where sampling draws).
 #[test]
 fn shaped_leaves_bound_their_edges() {
-    let cases: &[(&str, &[&str], [f32; 3], DiskMap, u32)] = &[
+    // (Model, parameters, wi, map, grid steps of the check.)
+    type Case = (
+        &'static str,
+        &'static [&'static str],
+        [f32; 3],
+        DiskMap,
+        u32,
+    );
+    let cases: &[Case] = &[
         (
             "schlick",
             &["c=0.5810296,1.0,0.5810296", "r=0.6671167", "p=0.2013464"],
