@@ -33,6 +33,15 @@ const RIM_BAND_HEIGHTS: [f64; 13] = [
 /// around (the highest ones).
 const EDGE_PEAKS: usize = 3;
 
+/// The evaluations the edge searches of one shaped box take at most (the build's budget
+/// counts them): four edges, [`EDGE_PEAKS`] golden-section searches each, of two starting
+/// points and ⌈ln 1000 / ln φ⌉ = 15 steps down to 10⁻³ of their stretch.
+pub(crate) const EDGE_SEARCH_EVALS: u64 = 4 * EDGE_PEAKS as u64 * 17;
+
+/// The evaluations of one rim band ([`Context::rim_heights`]): 33 points on each of at most
+/// two arcs (or edges), at every height of [`RIM_BAND_HEIGHTS`].
+pub(crate) const RIM_BAND_EVALS: u64 = 66 * RIM_BAND_HEIGHTS.len() as u64;
+
 /// A tangent axis of the disk (the local frame's x or y).
 #[derive(Clone, Copy)]
 enum Axis {
@@ -405,7 +414,7 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
             };
             for j in 0..=g {
                 // Pull the upper ends in by a hair: the node's upper edges are open.
-                let t = t0 + (t1 - t0) * (j as f64 / g as f64).min(1.0 - 1e-12);
+                let t = t0 + (t1 - t0) * (j as f64 / g as f64).min(ROW_TOP);
                 let q = DVec2::new(a, t);
                 let known = coarse
                     .filter(|_| i % 2 == 0 && j % 2 == 0)
@@ -437,9 +446,9 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
 
     /// The heights in the band along the node's stretch of the rim, with their chart points:
     /// 33 points an arc (or edge), each at the rim probe's heights above the rim
-    /// ([`Self::rim_probe`]) and at eleven more up to z = 0.4 ([`RIM_BAND_HEIGHTS`]). What a shaped square or polar
-    /// box must bound where f stays bounded at the rim (f·Jacobian: f times the polar chart's
-    /// constant, [`crate::chart::polar_jacobian`]):
+    /// ([`Self::rim_probe`]) and at eleven more up to z = 0.4 ([`RIM_BAND_HEIGHTS`]). What a
+    /// shaped square or polar box must bound where f stays bounded at the rim (f·Jacobian: f
+    /// times the polar chart's constant, [`crate::chart::polar_jacobian`]):
     /// the grid's rows do not reach into that band, where f may still climb or bend (Schlick's
     /// Fresnel at grazing wo; Poulin–Fournier's cylinders), and a shape, unlike the flat box,
     /// may be low there. (The band reaches the grid's last row: on the concentric map the
@@ -796,14 +805,13 @@ impl<B: Brdf + ?Sized> Context<'_, B> {
             .collect();
         peaks.sort_unstable_by(|&a, &b| profile[b].1.total_cmp(&profile[a].1));
         let (lo, span) = (prop.lo, prop.hi - prop.lo);
-        let top = 1.0 - 1e-12;
         // h/S at unit coordinate u along the edge.
         let at = |u: f64| {
             let t = match k {
                 0 => DVec2::new(0.0, u),
-                1 => DVec2::new(top, u),
+                1 => DVec2::new(ROW_TOP, u),
                 2 => DVec2::new(u, 0.0),
-                _ => DVec2::new(u, top),
+                _ => DVec2::new(u, ROW_TOP),
             };
             let q = lo + span * t;
             over_shape(self.height(prop, rect, q), q)

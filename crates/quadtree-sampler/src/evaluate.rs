@@ -3,7 +3,7 @@
 //! ([`crate::bound`]), and the build's budgets (evaluations, remembered cells). Pure
 //! functions of a node's square and inherited cells, so levels evaluate in parallel.
 
-use crate::bound::{Known, RimProbe};
+use crate::bound::{EDGE_SEARCH_EVALS, Known, RIM_BAND_EVALS, RimProbe};
 use crate::chart::{Chart, Rect};
 use crate::config::{BuildConfig, IntegrationRule};
 use crate::integrate::{Cell, Domain, Peak, UnitRule, refine_cells};
@@ -446,8 +446,12 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         // (The grid, hints and searches, four more for a fine shape's quarters, searches
         // along the edges; the rim band where there is one.)
         let quarters = if shape.grid().is_some() { 1600 } else { 0 };
-        let edges = 4 * 3 * 17;
-        *spent += g * g + 1300 + quarters + edges + if rim_limit.is_some() { 13 * 66 } else { 0 };
+        let rim = if rim_limit.is_some() {
+            RIM_BAND_EVALS
+        } else {
+            0
+        };
+        *spent += g * g + 1300 + quarters + EDGE_SEARCH_EVALS + rim;
         let known = Known {
             coarse: Some(&grid[..coarse_len]),
             rim_band: &rim_band,

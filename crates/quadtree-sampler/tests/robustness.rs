@@ -444,6 +444,60 @@ fn bounds_a_random_sweep_found_short_now_hold() {
     }
 }
 
+/// Checks every leaf of `b`'s tree at `wi` on `map` whose proposal `pick` selects, directly:
+/// its bound times its shape against f·Jacobian on an (n + 1)² grid over its box, the unit
+/// coordinates kept `inset` inside [0, 1] (sampling draws a hair inside the lower edges and
+/// never on the upper ones, which are open). Returns how many leaves it checked.
+fn assert_leaves_bounded(
+    b: &dyn Brdf,
+    wi: Vec3,
+    map: DiskMap,
+    n: u32,
+    inset: f64,
+    pick: impl Fn(&quadtree_sampler::proposal::Proposal) -> bool,
+) -> usize {
+    let cfg = BuildConfig {
+        map,
+        ..BuildConfig::default()
+    };
+    let tree = Quadtree::new(b, wi, cfg).unwrap();
+    let mut checked = 0;
+    for (i, node) in tree.leaves() {
+        let prop = &node.proposal;
+        if !pick(prop) {
+            continue;
+        }
+        checked += 1;
+        let rect = node.rect();
+        for ix in 0..=n {
+            for iy in 0..=n {
+                let t = (glam::DVec2::new(f64::from(ix), f64::from(iy)) / f64::from(n))
+                    .clamp(glam::DVec2::splat(inset), glam::DVec2::splat(1.0 - inset));
+                let q = prop.lo + (prop.hi - prop.lo) * t;
+                let Some(c) = prop.point(map, &rect, q) else {
+                    continue;
+                };
+                let f = f64::from(brdf_core::geometry::luminance(b.eval(wi, c.w.as_vec3())));
+                let s = if prop.shape.is_flat() {
+                    1.0
+                } else {
+                    prop.shape.value(prop.unit(q))
+                };
+                assert!(
+                    f * c.jacobian <= node.bound * s,
+                    "{} wi {wi} {map:?}: leaf {i} ({:?}, rect {rect:?}): f·J {} at {q} over its \
+                     bound {} × shape {s}",
+                    b.name(),
+                    prop.chart,
+                    f * c.jacobian,
+                    node.bound
+                );
+            }
+        }
+    }
+    checked
+}
+
 /// A leaf whose largest f·Jacobian lies on one of its edges that the angle chart bends into
 /// a curve: Strauss with smoothness 0.99 at cos θi = 0.006 on the orthographic map, whose
 /// lobe a rim leaf (sampled in the transposed angle chart) cuts at its edge x = −0.71875.
@@ -465,48 +519,9 @@ fn a_maximum_on_a_curved_leaf_edge_is_bounded() {
         ],
     );
     let wi = Vec3::new(0.5554, -0.8316, 0.00569).normalize();
-    let map = DiskMap::Orthographic;
-    let tree = Quadtree::new(
-        &*b,
-        wi,
-        BuildConfig {
-            map,
-            ..BuildConfig::default()
-        },
-    )
-    .unwrap();
-    let n = 300;
-    let mut checked = 0;
-    for (i, node) in tree.leaves() {
-        let prop = &node.proposal;
-        if !matches!(prop.chart, Chart::Angle | Chart::AngleY) {
-            continue;
-        }
-        checked += 1;
-        let rect = node.rect();
-        for ix in 0..=n {
-            for iy in 0..=n {
-                let t = glam::DVec2::new(f64::from(ix), f64::from(iy)) / f64::from(n);
-                let q = prop.lo + (prop.hi - prop.lo) * t;
-                let Some(c) = prop.point(map, &rect, q) else {
-                    continue;
-                };
-                let f = f64::from(brdf_core::geometry::luminance(b.eval(wi, c.w.as_vec3())));
-                let s = if prop.shape.is_flat() {
-                    1.0
-                } else {
-                    prop.shape.value(prop.unit(q))
-                };
-                assert!(
-                    f * c.jacobian <= node.bound * s,
-                    "leaf {i} ({:?}, rect {rect:?}): f·J {} at {q} over its bound {} × shape {s}",
-                    prop.chart,
-                    f * c.jacobian,
-                    node.bound
-                );
-            }
-        }
-    }
+    let checked = assert_leaves_bounded(&*b, wi, DiskMap::Orthographic, 300, 0.0, |p| {
+        matches!(p.chart, Chart::Angle | Chart::AngleY)
+    });
     assert!(checked > 0, "the tree has rim leaves in an angle chart");
 }
 
@@ -584,40 +599,7 @@ fn shaped_leaves_bound_their_edges() {
     for &(name, params, w, map, n) in cases {
         let b = model(name, params);
         let wi = Vec3::from(w).normalize();
-        let cfg = BuildConfig {
-            map,
-            ..BuildConfig::default()
-        };
-        let tree = Quadtree::new(&*b, wi, cfg).unwrap();
-        let mut shaped = 0;
-        for (i, node) in tree.leaves() {
-            let prop = &node.proposal;
-            if prop.shape.is_flat() {
-                continue;
-            }
-            shaped += 1;
-            let rect = node.rect();
-            for ix in 0..=n {
-                for iy in 0..=n {
-                    let t = (glam::DVec2::new(f64::from(ix), f64::from(iy)) / f64::from(n))
-                        .clamp(glam::DVec2::splat(1e-9), glam::DVec2::splat(1.0 - 1e-9));
-                    let q = prop.lo + (prop.hi - prop.lo) * t;
-                    let Some(c) = prop.point(map, &rect, q) else {
-                        continue;
-                    };
-                    let f = f64::from(brdf_core::geometry::luminance(b.eval(wi, c.w.as_vec3())));
-                    let s = prop.shape.value(prop.unit(q));
-                    assert!(
-                        f * c.jacobian <= node.bound * s,
-                        "{name} {params:?} {map:?}: leaf {i} ({:?}, rect {rect:?}): f·J {} at \
-                         {q} over its bound {} × shape {s}",
-                        prop.chart,
-                        f * c.jacobian,
-                        node.bound
-                    );
-                }
-            }
-        }
+        let shaped = assert_leaves_bounded(&*b, wi, map, n, 1e-9, |p| !p.shape.is_flat());
         assert!(shaped > 0, "{name}: the tree has shaped leaves");
     }
 }
