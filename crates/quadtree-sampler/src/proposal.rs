@@ -408,89 +408,156 @@ fn bilinear([c00, c10, c01, c11]: [f64; 4], u: DVec2) -> f64 {
     bottom + (top - bottom) * u.y
 }
 
-/// A [`Shape`] made ready for a leaf's rejection trials: its control values in f64 and its
-/// hats' running level sums, found once a sample rather than once a trial. Its `draw` *is*
-/// [`Shape::draw`] and its `value` gives [`Shape::value`]'s bits.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Prepared {
-    /// The control values (levels / 63) at t = (i/2, j/2), index 3j + i (a coarse shape's
-    /// corners only).
-    values: [f64; 9],
-    /// Running sums of the hats' levels: four corners (coarse), or sixteen (piece, corner)
-    /// pairs (fine); the last is the total.
-    sums: [u32; 16],
-    fine: bool,
+/// A level's value l/63, for l = 0…63 (the same bits as the division, made once).
+const LEVEL_VALUE: [f64; 64] = {
+    let mut v = [0.0; 64];
+    let mut l = 0;
+    while l < 64 {
+        v[l] = l as f64 / 63.0;
+        l += 1;
+    }
+    v
+};
+
+/// 2⁻³²: a 32-bit uniform to [0, 1).
+const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
+
+/// The hat (index into `sums`, the running sums of the hats' levels) that `pick` chooses:
+/// the first whose running sum passes pick·total/2³² (fixed counts, so the compares
+/// unroll).
+#[inline(always)]
+fn first_hat<const N: usize>(sums: &[u32; N], pick: u32) -> usize {
+    let point = (u64::from(pick) * u64::from(sums[N - 1])) >> 32;
+    sums[..N - 1]
+        .iter()
+        .map(|&s| usize::from(point >= u64::from(s)))
+        .sum::<usize>()
 }
 
-impl Prepared {
-    /// Prepares `shape`.
+/// A point under hat k (child order) of a bilinear piece, in its unit coordinates: on each
+/// axis the larger of the two 32-bit uniforms of a word toward the corner's high side, the
+/// smaller toward its low side — chosen by a mask, not a branch: which one a trial takes is
+/// a coin flip no predictor learns (as a branch, a simulated predictor missed it once a
+/// sample on phong n = 1000).
+#[inline(always)]
+fn hat_point(xy: [u64; 2], k: usize) -> DVec2 {
+    let pair = |r: u64, high: bool| {
+        let (a, b) = ((r >> 32) as u32, r as u32);
+        let mask = u32::from(high).wrapping_neg();
+        f64::from((a.max(b) & mask) | (a.min(b) & !mask)) * TO_UNIT
+    };
+    DVec2::new(pair(xy[0], k & 1 == 1), pair(xy[1], k >> 1 == 1))
+}
+
+/// A coarse [`Shape`] made ready for a leaf's rejection trials: its corner values and its
+/// four hats' running level sums (child order).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Coarse {
+    values: [f64; 4],
+    sums: [u32; 4],
+}
+
+impl Coarse {
+    /// From the corner levels (child order).
+    #[inline(always)]
+    fn new(levels: [u8; 4]) -> Self {
+        let mut total = 0u32;
+        Self {
+            values: levels.map(|l| LEVEL_VALUE[usize::from(l & 63)]),
+            sums: levels.map(|l| {
+                total += u32::from(l);
+                total
+            }),
+        }
+    }
+
+    /// [`Shape::value`].
+    #[inline(always)]
+    pub(crate) fn value(&self, t: DVec2) -> f64 {
+        bilinear(self.values, t)
+    }
+
+    /// [`Shape::draw`].
+    #[inline(always)]
+    pub(crate) fn draw(&self, xy: [u64; 2], pick: u32) -> DVec2 {
+        hat_point(xy, first_hat(&self.sums, pick))
+    }
+}
+
+/// A fine [`Shape`] made ready for a leaf's rejection trials: its nine control values and
+/// its sixteen (piece, corner) hats' running level sums.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Fine {
+    /// The control values at t = (i/2, j/2), index 3j + i.
+    values: [f64; 9],
+    sums: [u32; 16],
+}
+
+impl Fine {
+    /// From the nine control levels.
     #[inline]
-    pub(crate) fn new(shape: Shape) -> Self {
-        let mut values = [0.0; 9];
+    fn new(grid: [u8; 9]) -> Self {
         let mut sums = [0u32; 16];
         let mut total = 0u32;
-        if shape.fine {
-            values = shape.grid.map(|l| f64::from(l) / 63.0);
-            for (n, sum) in sums.iter_mut().enumerate() {
-                let q = [(n >> 2) & 1, n >> 3];
-                total += u32::from(shape.grid[piece_corner(q, n & 3)]);
-                *sum = total;
-            }
-        } else {
-            for (sum, &at) in sums.iter_mut().zip(&CORNERS) {
-                values[at] = f64::from(shape.grid[at]) / 63.0;
-                total += u32::from(shape.grid[at]);
-                *sum = total;
-            }
+        for (n, sum) in sums.iter_mut().enumerate() {
+            let q = [(n >> 2) & 1, n >> 3];
+            total += u32::from(grid[piece_corner(q, n & 3)]);
+            *sum = total;
         }
         Self {
-            values,
+            values: grid.map(|l| LEVEL_VALUE[usize::from(l & 63)]),
             sums,
-            fine: shape.fine,
         }
     }
 
     /// [`Shape::value`].
     #[inline]
     pub(crate) fn value(&self, t: DVec2) -> f64 {
-        let v = &self.values;
-        if !self.fine {
-            return bilinear([v[0], v[2], v[6], v[8]], t);
-        }
         let (q, u) = quarter(t);
-        bilinear([0, 1, 2, 3].map(|k| v[piece_corner(q, k)]), u)
+        bilinear([0, 1, 2, 3].map(|k| self.values[piece_corner(q, k)]), u)
     }
 
     /// [`Shape::draw`].
     #[inline]
     pub(crate) fn draw(&self, xy: [u64; 2], pick: u32) -> DVec2 {
-        const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
-        // The larger or the smaller of two uniforms by a mask, not a branch: which one a
-        // trial takes is a coin flip no predictor learns (as a branch, a simulated
-        // predictor missed it once a sample on phong n = 1000).
-        let pair = |r: u64, high: bool| {
-            let (a, b) = ((r >> 32) as u32, r as u32);
-            let mask = u32::from(high).wrapping_neg();
-            f64::from((a.max(b) & mask) | (a.min(b) & !mask)) * TO_UNIT
-        };
-        // The first hat whose running sum passes the point (fixed counts, so the compares
-        // unroll).
-        let first = |sums: &[u32]| {
-            let point = (u64::from(pick) * u64::from(sums[sums.len() - 1])) >> 32;
-            sums[..sums.len() - 1]
-                .iter()
-                .map(|&s| usize::from(point >= u64::from(s)))
-                .sum::<usize>()
-        };
-        if !self.fine {
-            let k = first(&self.sums[..4]);
-            return DVec2::new(pair(xy[0], k & 1 == 1), pair(xy[1], k >> 1 == 1));
-        }
-        let n = first(&self.sums);
+        let n = first_hat(&self.sums, pick);
         let (q, k) = (n >> 2, n & 3);
-        let u = DVec2::new(pair(xy[0], k & 1 == 1), pair(xy[1], k >> 1 == 1));
+        let u = hat_point(xy, k);
         // (Below ½ in a lower piece; at most ½ + ½·(1 − 2⁻³²) < 1 in an upper one.)
         DVec2::new(0.5 * (u.x + (q & 1) as f64), 0.5 * (u.y + (q >> 1) as f64))
+    }
+}
+
+/// A [`Shape`] made ready for a leaf's rejection trials: its control values in f64 and its
+/// hats' running level sums, found once a sample rather than once a trial (and the kind
+/// told apart once, before the trials). Its `draw` *is* [`Shape::draw`] and its `value`
+/// gives [`Shape::value`]'s bits.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Prepared {
+    /// A coarse shape (the flat box included).
+    Coarse(Coarse),
+    /// A fine shape.
+    Fine(Fine),
+}
+
+impl Prepared {
+    /// Prepares `shape`.
+    #[inline]
+    pub(crate) fn new(shape: Shape) -> Self {
+        if shape.fine {
+            Self::Fine(Fine::new(shape.grid))
+        } else {
+            Self::Coarse(Coarse::new(shape.levels()))
+        }
+    }
+
+    /// [`Shape::draw`].
+    #[inline]
+    pub(crate) fn draw(&self, xy: [u64; 2], pick: u32) -> DVec2 {
+        match self {
+            Self::Coarse(c) => c.draw(xy, pick),
+            Self::Fine(f) => f.draw(xy, pick),
+        }
     }
 }
 
@@ -1151,6 +1218,44 @@ mod tests {
             wrong > 10.0,
             "corner draws pass as the peak: z = {wrong:.2}"
         );
+    }
+
+    /// A prepared shape's value is [`Shape::value`] to the bit (the trials' height bound
+    /// M·S is the bound the build stored), at random points and on the midlines, for
+    /// random coarse and fine shapes.
+    #[test]
+    fn prepared_values_are_the_shapes_bits() {
+        let mut rng = <rand_pcg::Pcg64 as rand_core::SeedableRng>::seed_from_u64(8);
+        let mut level = || 1 + (rng.next_u32() % 63) as u8;
+        for _ in 0..500 {
+            let coarse = Shape::from_levels([0; 4].map(|_| level())).unwrap();
+            let fine = Shape::from_grid([0; 9].map(|_| level())).unwrap();
+            let mut points = <rand_pcg::Pcg64 as rand_core::SeedableRng>::seed_from_u64(9);
+            for k in 0..200 {
+                let mut t = DVec2::new(
+                    crate::uniform_f64(&mut points),
+                    crate::uniform_f64(&mut points),
+                );
+                if k % 4 == 0 {
+                    t.x = 0.5;
+                }
+                let value = match Prepared::new(coarse) {
+                    Prepared::Coarse(c) => c.value(t),
+                    Prepared::Fine(_) => panic!("a coarse shape prepared as fine"),
+                };
+                assert_eq!(value.to_bits(), coarse.value(t).to_bits(), "{coarse:?} {t}");
+                if let Some(grid) = fine.grid() {
+                    let Prepared::Fine(f) = Prepared::new(fine) else {
+                        panic!("a fine shape prepared as coarse: {grid:?}");
+                    };
+                    assert_eq!(
+                        f.value(t).to_bits(),
+                        fine.value(t).to_bits(),
+                        "{grid:?} {t}"
+                    );
+                }
+            }
+        }
     }
 
     /// Shapes keep their levels through the packed bits; the flat box is the zero word; bits
