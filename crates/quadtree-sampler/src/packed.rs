@@ -34,7 +34,7 @@
 
 use crate::bound::round_up_f32 as round_up;
 use crate::chart::{Chart, Rect, child_column, child_row};
-use crate::proposal::{Proposal, Shape};
+use crate::proposal::{Prepared, Proposal, Shape};
 use crate::tree::{Node, Quadtree, TreeStats};
 use alloc::vec::Vec;
 use brdf_core::DiskMap;
@@ -607,6 +607,44 @@ impl PackedTree {
         )
     }
 
+    /// What a rejection sample needs of its selected leaf, straight from the packed words:
+    /// the proposal box (its `shape` left flat), the bound M (0 for a leaf that holds
+    /// nothing) and the height shape made ready for the trials (`None`: flat). The same box,
+    /// bound and shape as [`PackedTree::proposal`] (a test says so), without decoding the
+    /// shape's control grid first; a square leaf's box is its square, built here.
+    #[inline(always)]
+    pub(crate) fn leaf_for_trials(&self, leaf: &Selected) -> (Proposal, f64, Option<Prepared>) {
+        let n = self.nodes[leaf.index];
+        let chart = n.chart();
+        let m = if n.is_live_leaf() {
+            f64::from(f32::from_bits(n.data[0]))
+        } else {
+            0.0
+        };
+        if chart.needs_stored_box() {
+            let [lo, hi] = self.rim[n.data[2] as usize];
+            let prop = Proposal {
+                chart,
+                lo,
+                hi,
+                shape: Shape::FLAT,
+            };
+            return (prop, m, None);
+        }
+        let prop = if chart == Chart::Square {
+            Proposal {
+                chart,
+                lo: leaf.rect.min,
+                hi: leaf.rect.max,
+                shape: Shape::FLAT,
+            }
+        } else {
+            Proposal::in_chart(&leaf.rect, chart)
+        };
+        let bits = (n.link & SHAPE_MASK) >> SHAPE_SHIFT;
+        (prop, m, Prepared::from_checked_bits(bits, n.data[2]))
+    }
+
     /// The raw words of every node (`link`, then `data`), for serialisation.
     #[must_use]
     pub(crate) fn raw_nodes(&self) -> Vec<[u32; 4]> {
@@ -817,6 +855,79 @@ mod tests {
         assert_eq!(
             read(&deep).err(),
             Some("an inner node whose child intervals are out of order")
+        );
+    }
+
+    /// What the trials read of a leaf straight from its words is what inspection decodes:
+    /// the same box and bound, and the same shape made ready (`None` exactly for the flat
+    /// box), on every leaf of trees that hold square leaves flat, coarse and fine, rim
+    /// leaves and a polar one, on both maps.
+    #[test]
+    fn leaf_for_trials_is_the_leafs_proposal() {
+        use brdf_core::models::{CookTorrance, Lambert, Phong, Ward};
+        let grey = glam::Vec3::splat(0.5);
+        let models: [(alloc::boxed::Box<dyn brdf_core::Brdf>, glam::Vec3); 4] = [
+            (
+                alloc::boxed::Box::new(
+                    Phong::new(glam::Vec3::ZERO, glam::Vec3::ONE, 1000.0).unwrap(),
+                ),
+                glam::Vec3::new(0.6, 0.0, 0.8),
+            ),
+            (
+                alloc::boxed::Box::new(CookTorrance::new(0.1, grey, grey).unwrap()),
+                glam::Vec3::new(0.3, 0.5, 0.81),
+            ),
+            (
+                alloc::boxed::Box::new(Ward::new(grey, grey, 0.05, 0.2).unwrap()),
+                glam::Vec3::new(0.9, 0.1, 0.2),
+            ),
+            (
+                alloc::boxed::Box::new(Lambert::new(grey).unwrap()),
+                glam::Vec3::Z,
+            ),
+        ];
+        let mut kinds = [0usize; 5];
+        for (brdf, wi) in &models {
+            for map in [DiskMap::Orthographic, DiskMap::Concentric] {
+                let config = crate::BuildConfig {
+                    map,
+                    ..crate::BuildConfig::default()
+                };
+                let packed = PackedTree::new(&Quadtree::new(brdf, *wi, config).unwrap());
+                for leaf in packed.leaves() {
+                    let s = Selected {
+                        index: leaf.index,
+                        rect: leaf.rect,
+                        depth: leaf.depth,
+                    };
+                    let (want, want_m) = packed.proposal(&s);
+                    let (got, m, shape) = packed.leaf_for_trials(&s);
+                    assert_eq!(m.to_bits(), want_m.to_bits(), "{} {map:?}", brdf.name());
+                    assert_eq!(
+                        Proposal {
+                            shape: want.shape,
+                            ..got
+                        },
+                        want,
+                        "{} {map:?}",
+                        brdf.name()
+                    );
+                    assert_eq!(got.shape, Shape::FLAT);
+                    let expected = (!want.shape.is_flat()).then(|| Prepared::new(want.shape));
+                    assert_eq!(shape, expected, "{} {map:?}", brdf.name());
+                    kinds[match (want.chart, shape) {
+                        (Chart::Polar, _) => 0,
+                        (c, _) if c.needs_stored_box() => 1,
+                        (_, None) => 2,
+                        (_, Some(Prepared::Coarse(_))) => 3,
+                        (_, Some(Prepared::Fine(_))) => 4,
+                    }] += 1;
+                }
+            }
+        }
+        assert!(
+            kinds.iter().all(|&k| k > 0),
+            "polar, rim, flat, coarse, fine: {kinds:?}"
         );
     }
 

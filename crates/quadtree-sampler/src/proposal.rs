@@ -451,7 +451,7 @@ fn hat_point(xy: [u64; 2], k: usize) -> DVec2 {
 
 /// A coarse [`Shape`] made ready for a leaf's rejection trials: its corner values and its
 /// four hats' running level sums (child order).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Coarse {
     values: [f64; 4],
     sums: [u32; 4],
@@ -486,7 +486,7 @@ impl Coarse {
 
 /// A fine [`Shape`] made ready for a leaf's rejection trials: its nine control values and
 /// its sixteen (piece, corner) hats' running level sums.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Fine {
     /// The control values at t = (i/2, j/2), index 3j + i.
     values: [f64; 9],
@@ -532,7 +532,7 @@ impl Fine {
 /// hats' running level sums, found once a sample rather than once a trial (and the kind
 /// told apart once, before the trials). Its `draw` *is* [`Shape::draw`] and its `value`
 /// gives [`Shape::value`]'s bits.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) enum Prepared {
     /// A coarse shape (the flat box included).
     Coarse(Coarse),
@@ -541,6 +541,21 @@ pub(crate) enum Prepared {
 }
 
 impl Prepared {
+    /// The shape of a packed leaf's checked bits (see [`Shape::from_checked_bits`]) made
+    /// ready, `None` for the flat box: a coarse shape's four levels are read from the bits
+    /// as they are, without the control grid between.
+    #[inline(always)]
+    pub(crate) fn from_checked_bits(bits: u32, fine: u32) -> Option<Self> {
+        if bits == 0 {
+            return None;
+        }
+        if fine == 0 {
+            let level = |k: u32| ((bits >> (6 * k)) & 63) as u8;
+            return Some(Self::Coarse(Coarse::new([0, 1, 2, 3].map(level))));
+        }
+        Some(Self::new(Shape::from_checked_bits(bits, fine)))
+    }
+
     /// Prepares `shape`.
     #[inline]
     pub(crate) fn new(shape: Shape) -> Self {

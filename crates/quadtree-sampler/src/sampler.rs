@@ -110,29 +110,29 @@ pub(crate) fn rejection_in_leaf<R: Rng + ?Sized>(
             None
         };
     }
-    let (prop, m) = tree.proposal(leaf);
+    let (prop, m, shape) = tree.leaf_for_trials(leaf);
     if !holds(m) {
         return None;
     }
     // A flat leaf's loop carries no shape; a shaped leaf draws its point with density ∝ S
     // and its height under M·S there, from its shape's sums and values prepared once (a
     // loop for each kind, so that no trial asks which kind it has).
-    if prop.shape.is_flat() {
-        let uv = |r: u64, _: &mut R| {
-            let uv = DVec2::new((r >> 32) as f64, (r & 0xffff_ffff) as f64) * TO_UNIT;
-            (uv, m)
-        };
-        return trials(tree, leaf, &prop, eval, rng, violations, uv);
-    }
-    match Prepared::new(prop.shape) {
-        Prepared::Coarse(shape) => {
+    match shape {
+        None => {
+            let uv = |r: u64, _: &mut R| {
+                let uv = DVec2::new((r >> 32) as f64, (r & 0xffff_ffff) as f64) * TO_UNIT;
+                (uv, m)
+            };
+            trials(tree, leaf, &prop, eval, rng, violations, uv)
+        }
+        Some(Prepared::Coarse(shape)) => {
             let shaped = |r: u64, rng: &mut R| {
                 let t = shape.draw([r, rng.next_u64()], rng.next_u32());
                 (t, m * shape.value(t))
             };
             trials(tree, leaf, &prop, eval, rng, violations, shaped)
         }
-        Prepared::Fine(shape) => {
+        Some(Prepared::Fine(shape)) => {
             let shaped = |r: u64, rng: &mut R| {
                 let t = shape.draw([r, rng.next_u64()], rng.next_u32());
                 (t, m * shape.value(t))
