@@ -112,14 +112,21 @@ impl PackedNode {
         }
     }
 
+    /// The chart of a leaf's box, read from a table (a `match` compiled to a jump).
+    #[inline]
     fn chart(&self) -> Chart {
-        match self.link & CHART_BITS {
-            0 => Chart::Square,
-            1 => Chart::Angle,
-            2 => Chart::Sine,
-            3 => Chart::AngleY,
-            _ => Chart::Polar,
-        }
+        /// The chart of each value of the link's chart bits (4 and above: polar).
+        const CHARTS: [Chart; 8] = [
+            Chart::Square,
+            Chart::Angle,
+            Chart::Sine,
+            Chart::AngleY,
+            Chart::Polar,
+            Chart::Polar,
+            Chart::Polar,
+            Chart::Polar,
+        ];
+        CHARTS[(self.link & CHART_BITS) as usize]
     }
 }
 
