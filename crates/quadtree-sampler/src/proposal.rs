@@ -76,6 +76,12 @@ const CORNERS: [usize; 4] = [0, 2, 6, 8];
 /// order of its packed word.
 const FINE_EXTRA: [usize; 5] = [1, 3, 4, 5, 7];
 
+/// Level k (six bits from bit 6k) of a packed shape word.
+#[inline(always)]
+fn packed_level(bits: u32, k: usize) -> u8 {
+    ((bits >> (6 * k)) & 63) as u8
+}
+
 /// Marks a fine [`Shape`]'s packed word (bit 31; bit 30 stays clear).
 const FINE_FLAG: u32 = 1 << 31;
 
@@ -334,11 +340,11 @@ impl Shape {
         }
         let mut grid = [0; 9];
         for (k, &at) in CORNERS.iter().enumerate() {
-            grid[at] = ((bits >> (6 * k)) & 63) as u8;
+            grid[at] = packed_level(bits, k);
         }
         if fine != 0 {
             for (k, &at) in FINE_EXTRA.iter().enumerate() {
-                grid[at] = ((fine >> (6 * k)) & 63) as u8;
+                grid[at] = packed_level(fine, k);
             }
         }
         Self {
@@ -354,7 +360,7 @@ impl Shape {
         if bits >> 24 != 0 {
             return None;
         }
-        let corner = |k: usize| ((bits >> (6 * k)) & 63) as u8;
+        let corner = |k: usize| packed_level(bits, k);
         if fine == 0 {
             if bits == 0 {
                 return Some(Self::FLAT);
@@ -369,7 +375,7 @@ impl Shape {
             grid[at] = corner(k);
         }
         for (k, &at) in FINE_EXTRA.iter().enumerate() {
-            grid[at] = ((fine >> (6 * k)) & 63) as u8;
+            grid[at] = packed_level(fine, k);
         }
         Self::from_grid(grid)
     }
@@ -419,8 +425,8 @@ const LEVEL_VALUE: [f64; 64] = {
     v
 };
 
-/// 2⁻³²: a 32-bit uniform to [0, 1).
-const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
+/// 2⁻³²: a 32-bit uniform (or a 32-bit half of a 64-bit draw) to [0, 1).
+pub(crate) const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
 
 /// The hat (index into `sums`, the running sums of the hats' levels) that `pick` chooses:
 /// the first whose running sum passes pick·total/2³² (fixed counts, so the compares
@@ -550,8 +556,8 @@ impl Prepared {
             return None;
         }
         if fine == 0 {
-            let level = |k: u32| ((bits >> (6 * k)) & 63) as u8;
-            return Some(Self::Coarse(Coarse::new([0, 1, 2, 3].map(level))));
+            let levels = [0, 1, 2, 3].map(|k| packed_level(bits, k));
+            return Some(Self::Coarse(Coarse::new(levels)));
         }
         Some(Self::new(Shape::from_checked_bits(bits, fine)))
     }

@@ -5,7 +5,7 @@ use crate::chart::ChartPoint;
 use crate::config::BuildConfig;
 use crate::error::BuildError;
 use crate::packed::{PackedTree, Selected};
-use crate::proposal::{Prepared, Proposal};
+use crate::proposal::{Prepared, Proposal, TO_UNIT};
 use crate::tree::{Quadtree, TreeStats, albedo_of_volume};
 use alloc::sync::Arc;
 use brdf_core::geometry::{above_horizon, luminance, unit_direction_above, unit_for_density};
@@ -141,9 +141,6 @@ pub(crate) fn rejection_in_leaf<R: Rng + ?Sized>(
         }
     }
 }
-
-/// 2⁻³²: a 32-bit half of a 64-bit draw to [0, 1).
-const TO_UNIT: f64 = 1.0 / 4_294_967_296.0;
 
 /// The trials of [`rejection_in_leaf`] in a flat polar leaf on the orthographic map (the
 /// root, or one of its children: a quarter of the disk). Its proposal, uniform in (s, φ) over
