@@ -584,7 +584,7 @@ impl PackedTree {
     }
 
     /// A selected leaf's rejection proposal and bound M (0 for a leaf that holds nothing):
-    /// [`PackedTree::leaf_for_trials`]' box and bound, with the height shape decoded for
+    /// the box and bound a rejection sample reads, with the height shape decoded for
     /// inspection.
     #[must_use]
     pub fn proposal(&self, leaf: &Selected) -> (Proposal, f64) {
