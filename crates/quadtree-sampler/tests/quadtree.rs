@@ -756,6 +756,50 @@ mod warp {
             assert!((mass - 1.0).abs() < 2e-3, "{name}: pdf mass {mass}");
         }
     }
+
+    /// A warp sample's pdf is `pdf()` of the f32 direction it returns, bit for bit, even
+    /// where rounding that direction carries it out of the leaf it was drawn in: a
+    /// Cook–Torrance lobe of m = 0.001 at 89.9° lies at the rim in leaves 2·10⁻⁶ wide, and
+    /// 4 % of its samples crossed an edge (the sampled pdf then differed from `pdf(wo)` by up
+    /// to 3×). The uniform-area share of the mix reaches every leaf, so the regular cases
+    /// are checked too.
+    #[test]
+    fn sampled_pdf_is_the_pdf_of_the_returned_direction() {
+        for &(name, params, theta, phi) in &[
+            ("cook-torrance", &["m=0.001"][..], 89.9, 303.6),
+            ("ward", &["alpha_x=0.001"][..], 60.0, 10.0),
+            ("phong", &["n=1000"][..], 45.0, 30.0),
+        ] {
+            let b = model(name, params);
+            let wi = dir(theta, phi);
+            let w = WarpSampler::new(&*b, wi, BuildConfig::default(), DEFAULT_MIX).unwrap();
+            let mut rng = Pcg64::seed_from_u64(5);
+            let mut moved = 0;
+            for _ in 0..200_000 {
+                let u = glam::Vec2::new(
+                    quadtree_sampler::uniform_f32(&mut rng),
+                    quadtree_sampler::uniform_f32(&mut rng),
+                );
+                let Some(s) = w.sample_warp(u) else { continue };
+                let (p, leaf) = w.warp_to_square(u.as_dvec2());
+                let q = DiskMap::Concentric.direction_to_square(s.wo).as_dvec2();
+                if w.tree().leaf_at(q) != leaf {
+                    moved += 1;
+                }
+                assert_eq!(
+                    s.pdf.to_bits(),
+                    w.pdf(s.wo).to_bits(),
+                    "{name} at u = {u}: point {p} in leaf {leaf}, direction {} in leaf {}",
+                    s.wo,
+                    w.tree().leaf_at(q)
+                );
+            }
+            // The case the test is for still occurs (else it checks nothing new).
+            if name == "cook-torrance" {
+                assert!(moved > 1000, "only {moved} samples left their leaf");
+            }
+        }
+    }
 }
 
 mod random {
