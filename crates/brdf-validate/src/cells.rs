@@ -7,6 +7,9 @@ use brdf_core::math as m;
 use glam::{DVec3, Vec3};
 use std::f64::consts::PI;
 
+/// Most peak hints a cell's integration uses (as many as a model gives).
+const HINTS: usize = 4;
+
 /// Cells over the projected disk (SPEC §5).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum CellGrid {
@@ -104,9 +107,12 @@ impl CellGrid {
     /// ∫ g(w) dA over cell `i` of the disk (dA = projected solid angle, dω = dA / cos θ), by
     /// nested adaptive Gauss–Kronrod (7–15) to about `tol` absolute, in coordinates where the
     /// rim is a boundary and integrands that grow like 1/√cos θ there (Ward) stay bounded:
-    /// polar cells in (v = √z, φ), dA = 2v³ dv dφ; square cells in the angle chart x = sin s,
-    /// y = cos s · sin t (z = cos s · cos t), dA = cos²s · cos t ds dt. Each range is first
-    /// cut at the coordinates of the `hints` (directions where g may peak; see `integrate::adaptive`).
+    /// polar cells in (v = √z, φ), dA = 2v³ dv dφ, below z = ½ and in (w = √(1 − z), φ),
+    /// dA = 2w(1 − w²) dw dφ, above (where v would squeeze a lobe at the pole); square cells
+    /// in the angle chart x = sin s, y = cos s · sin t (z = cos s · cos t),
+    /// dA = cos²s · cos t ds dt. Each range is first cut at the coordinates of the `hints`
+    /// (directions where g may peak; see `integrate::adaptive`), a polar cell's φ range also
+    /// where its circle crosses their lines x = h.x and y = h.y.
     pub(crate) fn integrate(
         &self,
         i: usize,
@@ -114,10 +120,10 @@ impl CellGrid {
         hints: &[DVec3],
         g: &(impl Fn(Vec3) -> f64 + ?Sized),
     ) -> f64 {
-        // One coordinate of every hint (at most MAX_BREAKS, as `adaptive` uses).
+        // One coordinate of every hint.
         let coords = |c: &dyn Fn(DVec3) -> f64| {
             let mut out = [f64::NAN; MAX_BREAKS];
-            for (o, &h) in out.iter_mut().zip(hints) {
+            for (o, &h) in out.iter_mut().zip(hints.iter().take(HINTS)) {
                 *o = c(h);
             }
             out
@@ -128,39 +134,92 @@ impl CellGrid {
                 // r² ∈ [a, b] ⇔ z ∈ [√(1 − b), √(1 − a)]; dA = r dr dφ = z dz dφ.
                 let z0 = m::sqrt((1.0 - (ri + 1) as f64 / rings as f64).max(0.0));
                 let z1 = m::sqrt(1.0 - ri as f64 / rings as f64);
-                let (v0, v1) = (m::sqrt(z0), m::sqrt(z1));
                 let p0 = 2.0 * PI * sj as f64 / sectors as f64;
                 let p1 = 2.0 * PI * (sj + 1) as f64 / sectors as f64;
-                let inner_tol = 0.1 * tol / (v1 - v0).max(1e-300);
-                let v_breaks = coords(&|h| m::sqrt(h.z));
-                let phi_breaks = coords(&|h| {
-                    let phi = m::atan2(h.y, h.x);
-                    if phi < 0.0 { phi + 2.0 * PI } else { phi }
-                });
-                adaptive(
-                    &|v: f64| {
-                        let z = v * v;
-                        let r = m::sqrt((1.0 - z * z).max(0.0));
-                        2.0 * v
-                            * z
-                            * adaptive(
-                                &|phi: f64| {
-                                    g(glam::DVec3::new(r * m::cos(phi), r * m::sin(phi), z)
-                                        .as_vec3())
-                                },
-                                p0,
-                                p1,
-                                &phi_breaks,
-                                inner_tol,
-                                MAX_PIECES,
-                            )
-                    },
-                    v0,
-                    v1,
-                    &v_breaks,
-                    tol,
-                    MAX_PIECES,
-                )
+                // ∫ over the sector at one height z (radius r = √(1 − z²)), its range cut
+                // at each hint's φ and where the circle crosses the hint's lines x = h.x and
+                // y = h.y: a lobe that is narrow along one tangent axis runs along such a
+                // line (Ward's, as αx → 0, along wo.x = −wi.x, the mirror direction's x), and
+                // one narrower than the nodes' spacing is found only at a break.
+                let across = |z: f64, inner_tol: f64| {
+                    let r = m::sqrt((1.0 - z * z).max(0.0));
+                    let mut breaks = [f64::NAN; MAX_BREAKS];
+                    let mut k = 0;
+                    let mut push = |phi: f64| {
+                        if k < MAX_BREAKS {
+                            breaks[k] = phi.rem_euclid(2.0 * PI);
+                            k += 1;
+                        }
+                    };
+                    for h in hints.iter().take(HINTS) {
+                        push(m::atan2(h.y, h.x));
+                        if r > 0.0 && h.x.abs() <= r {
+                            let a = m::acos(h.x / r);
+                            push(a);
+                            push(-a);
+                        }
+                        if r > 0.0 && h.y.abs() <= r {
+                            let b = m::asin(h.y / r);
+                            push(b);
+                            push(PI - b);
+                        }
+                    }
+                    adaptive(
+                        &|phi: f64| {
+                            g(glam::DVec3::new(r * m::cos(phi), r * m::sin(phi), z).as_vec3())
+                        },
+                        p0,
+                        p1,
+                        &breaks[..k],
+                        inner_tol,
+                        MAX_PIECES,
+                    )
+                };
+                // The heights of the hints, and where their lines x = h.x and y = h.y touch
+                // a circle (there the crossings above meet).
+                let z_breaks = {
+                    let mut out = [f64::NAN; MAX_BREAKS];
+                    for (k, h) in hints.iter().take(HINTS).enumerate() {
+                        out[3 * k] = h.z;
+                        out[3 * k + 1] = m::sqrt((1.0 - h.x * h.x).max(0.0));
+                        out[3 * k + 2] = m::sqrt((1.0 - h.y * h.y).max(0.0));
+                    }
+                    out
+                };
+                if z0 >= 0.5 {
+                    // Away from the rim, in w = √(1 − z) (≈ θ/√2 at the pole; dA = 2w(1 − w²)
+                    // dw dφ): v = √z squeezes the pole, where a lobe of width δθ (Ward's
+                    // α = 0.001 at normal incidence) is δθ²/4 wide in v, narrower than the
+                    // spacing of the nodes nearest the end, and was missed whole.
+                    let (w0, w1) = (m::sqrt(1.0 - z1), m::sqrt(1.0 - z0));
+                    let inner_tol = 0.1 * tol / (w1 - w0).max(1e-300);
+                    let w_breaks = z_breaks.map(|z| m::sqrt((1.0 - z).max(0.0)));
+                    adaptive(
+                        &|w: f64| 2.0 * w * (1.0 - w * w) * across(1.0 - w * w, inner_tol),
+                        w0,
+                        w1,
+                        &w_breaks,
+                        tol,
+                        MAX_PIECES,
+                    )
+                } else {
+                    // Toward the rim, in v = √z (dA = 2v³ dv dφ), where Ward's 1/√cos θ
+                    // growth is bounded.
+                    let (v0, v1) = (m::sqrt(z0), m::sqrt(z1));
+                    let inner_tol = 0.1 * tol / (v1 - v0).max(1e-300);
+                    let v_breaks = z_breaks.map(m::sqrt);
+                    adaptive(
+                        &|v: f64| {
+                            let z = v * v;
+                            2.0 * v * z * across(z, inner_tol)
+                        },
+                        v0,
+                        v1,
+                        &v_breaks,
+                        tol,
+                        MAX_PIECES,
+                    )
+                }
             }
             Self::Square { res } => {
                 let (iy, ix) = (i / res, i % res);
