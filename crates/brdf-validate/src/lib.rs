@@ -43,7 +43,9 @@ pub use error::ValidateError;
 pub use histogram::Histogram;
 pub use report::{Against, Reason, Report, Verdict};
 pub use sampler::{Drawn, FnSampler, Sampler};
-pub use stats::{ChiSquare, Spread, chi_square, chi_square_with_lost, gamma_q, sidak};
+pub use stats::{
+    ChiSquare, NORMALISATION_TOLERANCE, Spread, chi_square, chi_square_with_lost, gamma_q, sidak,
+};
 pub use suite::{
     Event, MAX_SAMPLES, Settings, SuiteReport, TestOutcome, WEIGHT_FLOOR, WeightTest, check,
     splitmix64, suite,

@@ -299,7 +299,7 @@ impl Validation {
         let own_total: f64 = own.iter().sum();
         let chi2_own = chi_square_with_lost(&observed, lost, samples, &own);
         let expected_own: Vec<f64> = own.iter().map(|x| m * x).collect();
-        if own_total > 1.0 + 1e-3 {
+        if own_total > 1.0 + crate::stats::NORMALISATION_TOLERANCE {
             reasons.push(Reason::PdfAboveOne {
                 integral: own_total,
             });
