@@ -25,6 +25,11 @@ use rand_core::Rng;
 /// Default defensive mixing weight ε of the cosine-like uniform component.
 pub const DEFAULT_MIX: f64 = 0.05;
 
+/// How far inside its leaf a drawn square point must lie for the f32 direction it becomes
+/// to map back into the same leaf ([`WarpSampler::sample_warp`]): 12× the largest move of
+/// the f32 round trip, 7.8·10⁻⁷, measured over 5·10⁷ points.
+const ROUNDING_MARGIN: f64 = 1e-5;
+
 /// The warp sampler of one incident direction (see the module doc).
 #[derive(Debug)]
 pub struct WarpSampler<B: Brdf = Arc<dyn Brdf>> {
@@ -192,9 +197,10 @@ impl<B: Brdf> WarpSampler<B> {
     /// the drawn point's direction to f32 can carry it across the edge of a deep leaf (near
     /// the rim a lobe of roughness 0.001 has leaves 2·10⁻⁶ wide; there 4 % of the samples
     /// landed in a neighbour whose density was up to 3× different), and a pdf that
-    /// disagreed with `pdf(wo)` would break multiple importance sampling. The drawn leaf
-    /// answers whenever the direction maps back into it, so only those few samples descend
-    /// the tree again.
+    /// disagreed with `pdf(wo)` would break multiple importance sampling. A point deeper
+    /// inside its leaf than the round trip can move it keeps the drawn leaf at once; one
+    /// nearer an edge maps its direction back, and descends the tree again only when that
+    /// lands outside the leaf.
     #[must_use]
     pub fn sample_warp(&self, u: Vec2) -> Option<Sample> {
         let (p, leaf) = self.warp_to_square(u.as_dvec2());
@@ -205,14 +211,25 @@ impl<B: Brdf> WarpSampler<B> {
         if !above_horizon(wo) {
             return None;
         }
-        let q = DiskMap::Concentric.direction_to_square(wo).as_dvec2();
-        // `leaf_at` sends a point on a split line to the upper side, and leaf squares are
-        // dyadic (exact in f64): inside the drawn leaf's half-open square, `leaf_at(q)` is
-        // that leaf.
-        let leaf = if self.tree.nodes()[leaf].rect().contains_half_open(q) {
+        // Where `pdf` finds the returned direction: the f32 inverse map moves a point by at
+        // most 8·10⁻⁷ (measured over 5·10⁷ points, the rim's and the pole's included), so a
+        // point deeper than ROUNDING_MARGIN inside the drawn leaf stays in it, and only one
+        // near an edge pays for the inverse map (an atan2: per-wi phong n = 1000 took 106
+        // instead of 84 ns when every sample did). There `leaf_at`, which sends a point on
+        // a split line to the upper side over dyadic (exact) squares, finds the drawn leaf
+        // exactly when the point lies in its half-open square.
+        let rect = self.tree.nodes()[leaf].rect();
+        let deep = (p - rect.min).min_element() >= ROUNDING_MARGIN
+            && (rect.max - p).min_element() > ROUNDING_MARGIN;
+        let leaf = if deep {
             leaf
         } else {
-            self.tree.leaf_at(q)
+            let q = DiskMap::Concentric.direction_to_square(wo).as_dvec2();
+            if rect.contains_half_open(q) {
+                leaf
+            } else {
+                self.tree.leaf_at(q)
+            }
         };
         let pdf = self.pdf_at(leaf, wo);
         Sample::continuous(wo, self.brdf.eval(self.wi, wo), pdf)
