@@ -386,7 +386,13 @@ pub(crate) fn run_pdf(
             Ok(None) => continue,
             Err(e) => return Err(bad(e.to_string())),
         };
-        let wo = unit_direction(Vec3::from_array(v)).map_err(|e| bad(format!("wo: {e}")))?;
+        // A zero, NaN or infinite direction is an input error. A valid one goes to the
+        // sampler as read: each pdf normalises what is not unit to f32 rounding the way the
+        // pdf a sample carries was computed, so a record's direction read back gets that
+        // pdf bit for bit (normalising here first moved its last bits, and on a sharp lobe
+        // the pdf by 2·10⁻⁴).
+        let wo = Vec3::from_array(v);
+        unit_direction(wo).map_err(|e| bad(format!("wo: {e}")))?;
         out.write_all(fmt.format(built.sampler.pdf(wo)).as_bytes())?;
         out.write_all(b"\n")?;
     }
