@@ -271,8 +271,8 @@ fn chunk_rng(seed: u64, test: u64, chunk: u64) -> rand_pcg::Pcg64 {
 /// `sampler_for(k, wi)` builds the sampler under test, which is histogrammed over every grid
 /// of `settings` against the model's f·cos (integrated by [`Validation::new`]); with
 /// [`Settings::mean_weight`], each sampler's mean weight is then tested against the model's
-/// albedo (the cell masses' total at that wi). `on_event` sees every finished test (pictures, progress). Test k·G + g
-/// (incident direction k, grid g) draws from seeds derived from `settings.seed`, k and g
+/// albedo (the cell masses' total at that wi). `on_event` sees every finished test
+/// (pictures, progress). Test k·G + g (incident direction k, grid g) draws from seeds derived from `settings.seed`, k and g
 /// alone, so a report does not depend on the thread count.
 pub fn suite<B, S, E>(
     brdf: &B,

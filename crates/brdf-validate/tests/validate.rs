@@ -367,7 +367,7 @@ const NEEDLE_ACROSS_A_SECTOR: &[&str] = &["alpha_x=0.86", "alpha_y=0.001", "kd=0
 /// ranges: Ward's lobe lies along the line where the half vector's x (or y) slope is 0,
 /// wo.x = −wi.x. Before polar cells cut their φ range where each circle crosses the hints'
 /// lines x = h.x and y = h.y, and integrated away from the rim in w = √(1 − z), the polar
-/// grid missed up to 45 % of such a lobe's mass in a cell (χ² 26 725 on 88 dof, 6 478 on
+/// grid missed up to half of such a lobe's mass in a cell (χ² 26 725 on 88 dof, 6 478 on
 /// 72 and 2 013 on 1 274 for these three), and the exact quadtree was rejected; the square
 /// grid, whose charts are cut at the hints' x and y, passed. (At 89° the second needle is
 /// 10⁻⁵ wide at the rim, which only the pieces graded toward a break resolve; its quadtree

@@ -847,8 +847,8 @@ mod tests {
 
     /// What the trials read of a leaf straight from its words is what inspection decodes:
     /// the same shape made ready (`None` exactly for the flat box), and a square leaf's box
-    /// built in place is [`Proposal::in_chart`]'s, on every leaf of trees that hold square leaves flat, coarse and fine, rim
-    /// leaves and a polar one, on both maps.
+    /// built in place is [`Proposal::in_chart`]'s, on every leaf of trees that hold square
+    /// leaves flat, coarse and fine, rim leaves and a polar one, on both maps.
     #[test]
     fn leaf_for_trials_is_the_leafs_proposal() {
         use brdf_core::models::{CookTorrance, Lambert, Phong, Ward};

@@ -391,8 +391,10 @@ pub(crate) fn run_pdf(
         // pdf a sample carries was computed, so a record's direction read back gets that
         // pdf bit for bit (normalising here first moved its last bits, and on a sharp lobe
         // the pdf by 2·10⁻⁴).
-        let wo = Vec3::from_array(v);
-        unit_direction(wo).map_err(|e| bad(format!("wo: {e}")))?;
+        let v = Vec3::from_array(v);
+        let wo = unit_direction(v)
+            .map(|_| v)
+            .map_err(|e| bad(format!("wo: {e}")))?;
         out.write_all(fmt.format(built.sampler.pdf(wo)).as_bytes())?;
         out.write_all(b"\n")?;
     }
