@@ -203,14 +203,15 @@ impl BakedSampler {
             return 0.0;
         }
         let s = &tables.slices[c.slice];
-        let wf = w.as_vec3();
         match self.mode {
             BakedMode::Rejection => {
-                let y = f64::from(luminance(self.table_eval(adjoint, s.wi, wf)));
+                let y = f64::from(luminance(self.table_eval(adjoint, s.wi, w.as_vec3())));
                 y * w.z * s.rejection_scale
             }
             BakedMode::Warp => {
-                let p = s.map.direction_to_square(wf).as_dvec2();
+                // In f64, from the unit f64 direction: the f32 map cannot place a point of
+                // the rim band (see the per-wi warp's `square_point`).
+                let p = s.map.direction_to_square_f64(w);
                 let d = match drawn {
                     Some(Drawn::Warp(l)) if l.contains(p) => l.density,
                     _ => s.warp.density(p),

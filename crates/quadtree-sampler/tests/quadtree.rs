@@ -757,12 +757,60 @@ mod warp {
         }
     }
 
+    /// `pdf()` at the f32 directions of nine points of every leaf, its centre and eight an
+    /// eighth of its side from its edges, is that leaf's density: the direction is mapped
+    /// back to the square in f64, which moves a point by 6.7·10⁻⁸ at most (the f32 map moved
+    /// them by up to 2.4·10⁻⁷ near the rim, where these leaves are 1.9·10⁻⁶ wide). Cook–Torrance m = 0.001 at 89.9° puts
+    /// 95 % of its mass within 10⁻⁵ of the square's edge, where the f32 map (r = √(x² + y²)
+    /// in f32) placed directions in the wrong leaves: its pdf integrated to 0.922 over the
+    /// mirror's cell of a 25 × 25 grid, where the samples put 0.950, and a χ² of the samples
+    /// against their own pdf was 28 231 on 525 dof.
+    #[test]
+    fn the_warp_pdf_finds_every_leaf_from_its_points() {
+        const AT: [f64; 3] = [0.125, 0.5, 0.875];
+        for &(name, params, theta, phi) in &[
+            ("cook-torrance", &["m=0.001"][..], 89.9, 0.0),
+            ("ward", &["alpha_x=0.001"][..], 88.0, 200.0),
+            ("phong", &["n=1000"][..], 45.0, 30.0),
+        ] {
+            let b = model(name, params);
+            let w = WarpSampler::new(&*b, dir(theta, phi), BuildConfig::default(), DEFAULT_MIX)
+                .unwrap();
+            let (volume, mix) = (w.tree().volume(), w.mix());
+            let j = f64::from(DiskMap::Concentric.square_area_per_projected_solid_angle());
+            let mut wrong = 0;
+            let mut points = 0;
+            for (_, n) in w.tree().leaves() {
+                let r = n.rect();
+                let q = (1.0 - mix) * n.v1 / volume + mix * r.area() / 4.0;
+                for k in 0..9 {
+                    let t = glam::DVec2::new(AT[k % 3], AT[k / 3]);
+                    let Some(d) = DiskMap::Concentric.square_to_direction_f64(r.min + t * r.side())
+                    else {
+                        continue;
+                    };
+                    let wo = d.as_vec3();
+                    if wo.z <= 0.0 {
+                        continue;
+                    }
+                    points += 1;
+                    let want = q / r.area() * j * f64::from(wo.z);
+                    let got = f64::from(w.pdf(wo));
+                    if (got - want).abs() > 1e-5 * want {
+                        wrong += 1;
+                    }
+                }
+            }
+            assert_eq!(wrong, 0, "{name}: {wrong} of {points} points found wrongly");
+        }
+    }
+
     /// A warp sample's pdf is `pdf()` of the f32 direction it returns, bit for bit, even
     /// where rounding that direction carries it out of the leaf it was drawn in: a
-    /// Cook–Torrance lobe of m = 0.001 at 89.9° lies at the rim in leaves 2·10⁻⁶ wide, and
-    /// 4 % of its samples crossed an edge (the sampled pdf then differed from `pdf(wo)` by up
-    /// to 3×). The uniform-area share of the mix reaches every leaf, so the regular cases
-    /// are checked too.
+    /// Cook–Torrance lobe of m = 0.001 at 89.9° lies at the rim in leaves 1.9·10⁻⁶ wide, and
+    /// 1 142 of these 2·10⁵ samples cross an edge (with the f32 map back, 4 % did, and the
+    /// sampled pdf then differed from `pdf(wo)` by up to 3×). The uniform-area share of the
+    /// mix reaches every leaf, so the regular cases are checked too.
     #[test]
     fn sampled_pdf_is_the_pdf_of_the_returned_direction() {
         for &(name, params, theta, phi) in &[
@@ -782,7 +830,8 @@ mod warp {
                 );
                 let Some(s) = w.sample_warp(u) else { continue };
                 let (p, leaf) = w.warp_to_square(u.as_dvec2());
-                let q = DiskMap::Concentric.direction_to_square(s.wo).as_dvec2();
+                let q = DiskMap::Concentric
+                    .direction_to_square_f64(brdf_core::geometry::normalize_f64(s.wo.as_dvec3()));
                 if w.tree().leaf_at(q) != leaf {
                     moved += 1;
                 }
@@ -796,7 +845,7 @@ mod warp {
             }
             // The case the test is for still occurs (else it checks nothing new).
             if name == "cook-torrance" {
-                assert!(moved > 1000, "only {moved} samples left their leaf");
+                assert!(moved > 500, "only {moved} samples left their leaf");
             }
         }
     }
