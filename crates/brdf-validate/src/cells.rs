@@ -7,8 +7,142 @@ use brdf_core::math as m;
 use glam::{DVec3, Vec3};
 use std::f64::consts::PI;
 
-/// Most peak hints a cell's integration uses (as many as a model gives).
-const HINTS: usize = 4;
+/// Most peak directions of a model a cell's integration uses (as many as a model gives).
+const MODEL_PEAKS: usize = 4;
+/// Most peak directions a cell's integration uses: a model's, then a sampler's own.
+const MAX_PEAKS: usize = 12;
+/// Most ridge planes a cell's integration uses: the two axis planes of each of a model's
+/// peaks, then a sampler's own (see [`Hints`]).
+const MAX_RIDGES: usize = 24;
+
+/// Where a cell's integration cuts its ranges: directions where the integrand may peak
+/// sharply, and planes {w : n·w = c} along which it may be concentrated, as a lobe narrow
+/// along one tangent axis is. Each of a model's peaks brings its two axis planes x = h.x
+/// and y = h.y (Ward's lobe as αx → 0 lies along wo.x = −wi.x, the mirror direction's x);
+/// a sampler may add its own peaks and planes (a baked sampler's neighbour trees, rotated
+/// onto wi, carry their lobes along rotated planes).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct Hints {
+    peaks: Vec<DVec3>,
+    /// (unit normal n, offset c).
+    ridges: Vec<(DVec3, f64)>,
+}
+
+impl Hints {
+    /// A model's peaks (the first [`MODEL_PEAKS`] finite ones) with their axis planes.
+    pub(crate) fn of_model(peaks: &[DVec3]) -> Self {
+        let peaks: Vec<DVec3> = peaks
+            .iter()
+            .copied()
+            .filter(|h| h.is_finite())
+            .take(MODEL_PEAKS)
+            .collect();
+        let ridges = peaks
+            .iter()
+            .flat_map(|h| [(DVec3::X, h.x), (DVec3::Y, h.y)])
+            .collect();
+        Self { peaks, ridges }
+    }
+
+    /// These hints and more: `peaks` (without axis planes) and `ridges` (normals scaled to
+    /// unit length; zero or non-finite ones dropped), up to [`MAX_PEAKS`] and
+    /// [`MAX_RIDGES`] in all.
+    pub(crate) fn with(&self, peaks: &[DVec3], ridges: &[(DVec3, f64)]) -> Self {
+        let mut h = self.clone();
+        h.peaks
+            .extend(peaks.iter().copied().filter(|p| p.is_finite()));
+        h.peaks.truncate(MAX_PEAKS);
+        h.ridges.extend(ridges.iter().filter_map(|&(n, c)| {
+            let l = n.length();
+            (l > 0.0 && l.is_finite() && c.is_finite()).then(|| (n / l, c / l))
+        }));
+        h.ridges.truncate(MAX_RIDGES);
+        h
+    }
+
+    /// The ridge planes' crossings of the circle of radius r at height z, as angles φ.
+    fn circle_crossings(&self, r: f64, z: f64, mut push: impl FnMut(f64)) {
+        for &(n, c) in &self.ridges {
+            // n.x·r·cos φ + n.y·r·sin φ = c − n.z·z.
+            let a = r * m::sqrt(n.x * n.x + n.y * n.y);
+            if a > 0.0 {
+                let q = (c - n.z * z) / a;
+                if q.abs() <= 1.0 {
+                    let (phi0, d) = (m::atan2(n.y, n.x), m::acos(q));
+                    push(phi0 + d);
+                    push(phi0 - d);
+                }
+            }
+        }
+    }
+
+    /// The heights z where a ridge plane touches a circle of constant z (where its two
+    /// crossings meet): z = c·n.z ± |n_xy|·√(1 − c²).
+    fn tangent_heights(&self, mut push: impl FnMut(f64)) {
+        for &(n, c) in &self.ridges {
+            if c.abs() <= 1.0 {
+                let b = m::sqrt(n.x * n.x + n.y * n.y) * m::sqrt(1.0 - c * c);
+                push(c * n.z + b);
+                push(c * n.z - b);
+            }
+        }
+    }
+
+    /// Where a ridge plane touches a line of constant x = sin s of the square grid's chart:
+    /// x = c·n.x ± |n_yz|·√(1 − c²).
+    fn tangent_xs(&self, mut push: impl FnMut(f64)) {
+        for &(n, c) in &self.ridges {
+            if c.abs() <= 1.0 {
+                let b = m::sqrt(n.y * n.y + n.z * n.z) * m::sqrt(1.0 - c * c);
+                push(c * n.x + b);
+                push(c * n.x - b);
+            }
+        }
+    }
+
+    /// The ridge planes' crossings of the chart's line x = sin s, (x, cs·sin t, cs·cos t),
+    /// as angles t.
+    fn line_crossings(&self, x: f64, cs: f64, mut push: impl FnMut(f64)) {
+        for &(n, c) in &self.ridges {
+            // cs·(n.y·sin t + n.z·cos t) = c − n.x·x.
+            let a = cs * m::sqrt(n.y * n.y + n.z * n.z);
+            if a > 0.0 {
+                let q = (c - n.x * x) / a;
+                if q.abs() <= 1.0 {
+                    let (t0, d) = (m::atan2(n.y, n.z), m::acos(q));
+                    push(t0 + d);
+                    push(t0 - d);
+                }
+            }
+        }
+    }
+}
+
+/// Up to [`MAX_BREAKS`] break points, filled by pushes beyond which they are dropped.
+struct Breaks {
+    at: [f64; MAX_BREAKS],
+    len: usize,
+}
+
+impl Breaks {
+    fn new() -> Self {
+        Self {
+            at: [f64::NAN; MAX_BREAKS],
+            len: 0,
+        }
+    }
+
+    fn push(&mut self, x: f64) {
+        if self.len < MAX_BREAKS && x.is_finite() {
+            self.at[self.len] = x;
+            self.len += 1;
+        }
+    }
+
+    fn as_slice(&self) -> &[f64] {
+        &self.at[..self.len]
+    }
+}
 
 /// Cells over the projected disk (SPEC §5).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -110,24 +244,17 @@ impl CellGrid {
     /// polar cells in (v = √z, φ), dA = 2v³ dv dφ, below z = ½ and in (w = √(1 − z), φ),
     /// dA = 2w(1 − w²) dw dφ, above (where v would squeeze a lobe at the pole); square cells
     /// in the angle chart x = sin s, y = cos s · sin t (z = cos s · cos t),
-    /// dA = cos²s · cos t ds dt. Each range is first cut at the coordinates of the `hints`
-    /// (directions where g may peak; see `integrate::adaptive`), a polar cell's φ range also
-    /// where its circle crosses their lines x = h.x and y = h.y.
+    /// dA = cos²s · cos t ds dt. Each range is first cut where the `hints` say g may peak
+    /// (see `integrate::adaptive`): at their peaks' coordinates, where the line or circle of
+    /// the inner integral crosses a ridge plane, and where a plane touches such a line or
+    /// circle (there its two crossings meet).
     pub(crate) fn integrate(
         &self,
         i: usize,
         tol: f64,
-        hints: &[DVec3],
+        hints: &Hints,
         g: &(impl Fn(Vec3) -> f64 + ?Sized),
     ) -> f64 {
-        // One coordinate of every hint.
-        let coords = |c: &dyn Fn(DVec3) -> f64| {
-            let mut out = [f64::NAN; MAX_BREAKS];
-            for (o, &h) in out.iter_mut().zip(hints.iter().take(HINTS)) {
-                *o = c(h);
-            }
-            out
-        };
         match *self {
             Self::Polar { rings, sectors } => {
                 let (ri, sj) = (i / sectors, i % sectors);
@@ -137,55 +264,34 @@ impl CellGrid {
                 let p0 = 2.0 * PI * sj as f64 / sectors as f64;
                 let p1 = 2.0 * PI * (sj + 1) as f64 / sectors as f64;
                 // ∫ over the sector at one height z (radius r = √(1 − z²)), its range cut
-                // at each hint's φ and where the circle crosses the hint's lines x = h.x and
-                // y = h.y: a lobe that is narrow along one tangent axis runs along such a
-                // line (Ward's, as αx → 0, along wo.x = −wi.x, the mirror direction's x), and
-                // one narrower than the nodes' spacing is found only at a break.
+                // at each peak's φ and where the circle crosses a ridge plane: a lobe
+                // narrower than the nodes' spacing is found only at a break.
                 let across = |z: f64, inner_tol: f64| {
                     let r = m::sqrt((1.0 - z * z).max(0.0));
-                    let mut breaks = [f64::NAN; MAX_BREAKS];
-                    let mut k = 0;
-                    let mut push = |phi: f64| {
-                        if k < MAX_BREAKS {
-                            breaks[k] = phi.rem_euclid(2.0 * PI);
-                            k += 1;
-                        }
-                    };
-                    for h in hints.iter().take(HINTS) {
+                    let mut breaks = Breaks::new();
+                    let mut push = |phi: f64| breaks.push(phi.rem_euclid(2.0 * PI));
+                    for h in &hints.peaks {
                         push(m::atan2(h.y, h.x));
-                        if r > 0.0 && h.x.abs() <= r {
-                            let a = m::acos(h.x / r);
-                            push(a);
-                            push(-a);
-                        }
-                        if r > 0.0 && h.y.abs() <= r {
-                            let b = m::asin(h.y / r);
-                            push(b);
-                            push(PI - b);
-                        }
                     }
+                    hints.circle_crossings(r, z, &mut push);
                     adaptive(
                         &|phi: f64| {
                             g(glam::DVec3::new(r * m::cos(phi), r * m::sin(phi), z).as_vec3())
                         },
                         p0,
                         p1,
-                        &breaks[..k],
+                        breaks.as_slice(),
                         inner_tol,
                         MAX_PIECES,
                     )
                 };
-                // The heights of the hints, and where their lines x = h.x and y = h.y touch
-                // a circle (there the crossings above meet).
-                let z_breaks = {
-                    let mut out = [f64::NAN; MAX_BREAKS];
-                    for (k, h) in hints.iter().take(HINTS).enumerate() {
-                        out[3 * k] = h.z;
-                        out[3 * k + 1] = m::sqrt((1.0 - h.x * h.x).max(0.0));
-                        out[3 * k + 2] = m::sqrt((1.0 - h.y * h.y).max(0.0));
-                    }
-                    out
-                };
+                // The heights of the peaks, and where the ridge planes touch a circle.
+                let mut z_breaks = Breaks::new();
+                for h in &hints.peaks {
+                    z_breaks.push(h.z);
+                }
+                hints.tangent_heights(|z| z_breaks.push(z));
+                let z_breaks = z_breaks.as_slice();
                 if z0 >= 0.5 {
                     // Away from the rim, in w = √(1 − z) (≈ θ/√2 at the pole; dA = 2w(1 − w²)
                     // dw dφ): v = √z squeezes the pole, where a lobe of width δθ (Ward's
@@ -193,12 +299,15 @@ impl CellGrid {
                     // spacing of the nodes nearest the end, and was missed whole.
                     let (w0, w1) = (m::sqrt(1.0 - z1), m::sqrt(1.0 - z0));
                     let inner_tol = 0.1 * tol / (w1 - w0).max(1e-300);
-                    let w_breaks = z_breaks.map(|z| m::sqrt((1.0 - z).max(0.0)));
+                    let mut w_breaks = Breaks::new();
+                    for &z in z_breaks {
+                        w_breaks.push(m::sqrt((1.0 - z).max(0.0)));
+                    }
                     adaptive(
                         &|w: f64| 2.0 * w * (1.0 - w * w) * across(1.0 - w * w, inner_tol),
                         w0,
                         w1,
-                        &w_breaks,
+                        w_breaks.as_slice(),
                         tol,
                         MAX_PIECES,
                     )
@@ -207,7 +316,10 @@ impl CellGrid {
                     // growth is bounded.
                     let (v0, v1) = (m::sqrt(z0), m::sqrt(z1));
                     let inner_tol = 0.1 * tol / (v1 - v0).max(1e-300);
-                    let v_breaks = z_breaks.map(m::sqrt);
+                    let mut v_breaks = Breaks::new();
+                    for &z in z_breaks {
+                        v_breaks.push(m::sqrt(z.max(0.0)));
+                    }
                     adaptive(
                         &|v: f64| {
                             let z = v * v;
@@ -215,7 +327,7 @@ impl CellGrid {
                         },
                         v0,
                         v1,
-                        &v_breaks,
+                        v_breaks.as_slice(),
                         tol,
                         MAX_PIECES,
                     )
@@ -228,7 +340,14 @@ impl CellGrid {
                 let (y0, y1) = (-1.0 + h * iy as f64, -1.0 + h * (iy + 1) as f64);
                 let (s0, s1) = (m::asin(x0.max(-1.0)), m::asin(x1.min(1.0)));
                 let inner_tol = 0.1 * tol / (s1 - s0).max(1e-300);
-                let s_breaks = coords(&|h| m::asin(h.x.clamp(-1.0, 1.0)));
+                // The peaks' x, and where a ridge plane touches a line of constant x (for an
+                // axis plane x = h.x, that line itself).
+                let mut s_breaks = Breaks::new();
+                let mut push_x = |x: f64| s_breaks.push(m::asin(x.clamp(-1.0, 1.0)));
+                for p in &hints.peaks {
+                    push_x(p.x);
+                }
+                hints.tangent_xs(&mut push_x);
                 adaptive(
                     &|s: f64| {
                         let c = m::cos(s);
@@ -241,8 +360,13 @@ impl CellGrid {
                             m::asin((b / c).clamp(-1.0, 1.0)),
                         );
                         let x = m::sin(s);
-                        // Where each hint's y falls on this line of constant x.
-                        let t_breaks = coords(&|h| m::asin((h.y / c).clamp(-1.0, 1.0)));
+                        // Where each peak's y falls on this line of constant x, and where
+                        // the line crosses a ridge plane.
+                        let mut t_breaks = Breaks::new();
+                        for p in &hints.peaks {
+                            t_breaks.push(m::asin((p.y / c).clamp(-1.0, 1.0)));
+                        }
+                        hints.line_crossings(x, c, |t| t_breaks.push(t));
                         c * c
                             * adaptive(
                                 &|t: f64| {
@@ -252,14 +376,14 @@ impl CellGrid {
                                 },
                                 t0,
                                 t1,
-                                &t_breaks,
+                                t_breaks.as_slice(),
                                 inner_tol,
                                 MAX_PIECES,
                             )
                     },
                     s0,
                     s1,
-                    &s_breaks,
+                    s_breaks.as_slice(),
                     tol,
                     MAX_PIECES,
                 )
@@ -272,7 +396,7 @@ impl CellGrid {
     pub(crate) fn integrate_all(
         &self,
         tol: f64,
-        hints: &[DVec3],
+        hints: &Hints,
         g: &(impl Fn(Vec3) -> f64 + Sync + ?Sized),
     ) -> Vec<f64> {
         use rayon::prelude::*;
@@ -296,7 +420,10 @@ mod tests {
                 sectors: 9,
             },
         ] {
-            let area: f64 = grid.integrate_all(1e-10, &[], &|_| 1.0).iter().sum();
+            let area: f64 = grid
+                .integrate_all(1e-10, &Hints::default(), &|_| 1.0)
+                .iter()
+                .sum();
             assert!((area - PI).abs() < 1e-8, "{grid:?}: {area}");
             assert_eq!(grid.cell_of(Vec3::new(0.0, 0.0, -1.0)), None);
             assert_eq!(grid.cell_of(Vec3::new(f32::NAN, 0.0, 1.0)), None);
@@ -307,7 +434,7 @@ mod tests {
             rings: 3,
             sectors: 5,
         };
-        let cells = g.integrate_all(1e-12, &[], &|_| 1.0);
+        let cells = g.integrate_all(1e-12, &Hints::default(), &|_| 1.0);
         for c in &cells {
             assert!((c - PI / 15.0).abs() < 1e-10);
         }

@@ -4,10 +4,10 @@
 
 /// Most intervals one adaptive integration may split its range into.
 pub(crate) const MAX_PIECES: usize = 200;
-/// Most break points one adaptive integration starts from: a model gives at most four peak
-/// hints, and a polar cell's range in φ is cut at up to five points for each (see
+/// Most break points one adaptive integration starts from: a polar cell's range in φ is cut
+/// at each of up to 12 peaks and at two points for each of up to 24 ridge planes (see
 /// `CellGrid::integrate`).
-pub(crate) const MAX_BREAKS: usize = 20;
+pub(crate) const MAX_BREAKS: usize = 64;
 /// Most levels of pieces halving toward a break where f spikes (see [`adaptive`]).
 const GRADING: usize = 40;
 

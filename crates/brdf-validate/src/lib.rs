@@ -41,6 +41,7 @@ mod validation;
 pub use cells::CellGrid;
 pub use error::ValidateError;
 pub use histogram::Histogram;
+pub use quadtree_sampler::{DensityHints, Ridge};
 pub use report::{Against, Reason, Report, Verdict};
 pub use sampler::{Drawn, FnSampler, Sampler};
 pub use stats::{

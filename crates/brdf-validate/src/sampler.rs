@@ -4,7 +4,7 @@
 
 use brdf_core::geometry::luminance;
 use glam::{Vec2, Vec3};
-use quadtree_sampler::{DirectionSampler, uniform_f32};
+use quadtree_sampler::{DensityHints, DirectionSampler, uniform_f32};
 use rand_core::Rng;
 
 /// One drawn direction, as far as a test needs it.
@@ -33,6 +33,16 @@ pub trait Sampler: Sync {
 
     /// The density of [`Sampler::draw`] at `wo`, **per unit solid angle**.
     fn pdf(&self, wo: Vec3) -> f32;
+
+    /// Where the density may be concentrated beyond the model's peak hints (local frame):
+    /// peaks and [`quadtree_sampler::Ridge`] planes, at which the integration of the
+    /// sampler's own cell probabilities cuts its ranges (a lobe narrower than the
+    /// integrator's node spacing is found only there). None by default; a sampler whose
+    /// pdf has needles where its model's f has none (a baked sampler's rotated neighbour
+    /// trees) names them.
+    fn density_hints(&self) -> DensityHints {
+        DensityHints::default()
+    }
 }
 
 impl<S: DirectionSampler + ?Sized> Sampler for S {
@@ -51,6 +61,10 @@ impl<S: DirectionSampler + ?Sized> Sampler for S {
 
     fn pdf(&self, wo: Vec3) -> f32 {
         DirectionSampler::pdf(self, wo)
+    }
+
+    fn density_hints(&self) -> DensityHints {
+        DirectionSampler::density_hints(self)
     }
 }
 

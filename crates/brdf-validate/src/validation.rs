@@ -14,7 +14,7 @@
 //! - per-sample consistency: the pdf a sample carries equals `pdf(wo)`, and its weight equals
 //!   f·cos θ/pdf.
 
-use crate::cells::CellGrid;
+use crate::cells::{CellGrid, Hints};
 use crate::error::ValidateError;
 use crate::histogram::Histogram;
 use crate::report::{Against, Reason, Report};
@@ -23,6 +23,7 @@ use crate::stats::{chi_square, chi_square_with_lost, spread};
 use brdf_core::Brdf;
 use brdf_core::geometry::unit_direction_above;
 use glam::{DVec3, Vec3};
+use quadtree_sampler::DensityHints;
 use rand_core::Rng;
 
 /// Samples per chunk of [`Validation::test_chunked`].
@@ -64,7 +65,7 @@ pub struct Validation {
     /// The absolute tolerance the masses were integrated to.
     tol: f64,
     /// Where every cell's integration cuts its ranges (the model's peak hints for wi).
-    hints: Vec<DVec3>,
+    hints: Hints,
     /// ∫ Y(f_r) dA per cell (the seed's I_i, unnormalised).
     mass: Vec<f64>,
 }
@@ -88,12 +89,13 @@ impl Validation {
         check_tolerance(tol)?;
         // The model's own peak directions (data of the model, not of any sampler): a lobe
         // narrower than a cell's node spacing is found there (see `integrate::adaptive`).
-        let hints: Vec<DVec3> = brdf
+        let peaks: Vec<DVec3> = brdf
             .peak_hints(brdf_core::geometry::lift_incident(wi))
             .as_slice()
             .iter()
             .map(|h| h.as_dvec3())
             .collect();
+        let hints = Hints::of_model(&peaks);
         Ok(Self::integrated(
             &|w: Vec3| f64::from(brdf.eval_luminance(wi, w)),
             hints,
@@ -115,7 +117,8 @@ impl Validation {
     ) -> Result<Self, ValidateError> {
         grid.check()?;
         check_tolerance(tol)?;
-        let hints = peaks.iter().map(|h| h.as_dvec3()).collect();
+        let peaks: Vec<DVec3> = peaks.iter().map(|h| h.as_dvec3()).collect();
+        let hints = Hints::of_model(&peaks);
         // Per unit projected area: f·cos dω = f dA.
         let per_area = |w: Vec3| {
             if w.z > 0.0 {
@@ -131,7 +134,7 @@ impl Validation {
     /// total.
     fn integrated(
         g: &(dyn Fn(Vec3) -> f64 + Sync),
-        hints: Vec<DVec3>,
+        hints: Hints,
         grid: CellGrid,
         tol: f64,
     ) -> Self {
@@ -170,13 +173,27 @@ impl Validation {
     /// over the cell, by the same integrator and break points as the masses, to the same
     /// tolerance relative to a total of 1. What is missing from their sum (at most 1) is the
     /// probability the sampler gives no direction. The second χ² of [`Validation::test`] is
-    /// taken against these; a caller that histograms samples itself (the viewer) can take it
-    /// too.
+    /// taken against these (with the sampler's own [`Sampler::density_hints`]); a caller that
+    /// histograms samples itself (the viewer) can take it too.
     #[must_use]
     pub fn own_probability(&self, pdf: &(dyn Fn(Vec3) -> f64 + Sync)) -> Vec<f64> {
+        self.own_probability_with(pdf, &DensityHints::default())
+    }
+
+    /// [`Validation::own_probability`], the ranges also cut where `hints` say the density may
+    /// be concentrated (a sampler's [`Sampler::density_hints`]): peaks and ridge planes
+    /// beyond the model's own, such as a baked sampler's rotated neighbour lobes.
+    #[must_use]
+    pub fn own_probability_with(
+        &self,
+        pdf: &(dyn Fn(Vec3) -> f64 + Sync),
+        hints: &DensityHints,
+    ) -> Vec<f64> {
+        let ridges: Vec<(DVec3, f64)> = hints.ridges.iter().map(|r| (r.normal, r.offset)).collect();
+        let all = self.hints.with(&hints.peaks, &ridges);
         let total: f64 = self.mass.iter().sum();
         self.grid
-            .integrate_all(self.tol / total.max(1e-300), &self.hints, &|w: Vec3| {
+            .integrate_all(self.tol / total.max(1e-300), &all, &|w: Vec3| {
                 if w.z > 0.0 {
                     pdf(w) / f64::from(w.z)
                 } else {
@@ -295,7 +312,10 @@ impl Validation {
         // χ² against f·cos: lost and outside samples have an expectation of 0 there.
         let chi2 = chi_square(&observed, &expected);
         // χ² against the sampler's own pdf.
-        let own = self.own_probability(&|w: Vec3| f64::from(sampler.pdf(w)));
+        let own = self.own_probability_with(
+            &|w: Vec3| f64::from(sampler.pdf(w)),
+            &sampler.density_hints(),
+        );
         let own_total: f64 = own.iter().sum();
         let chi2_own = chi_square_with_lost(&observed, lost, samples, &own);
         let expected_own: Vec<f64> = own.iter().map(|x| m * x).collect();

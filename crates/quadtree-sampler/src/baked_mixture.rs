@@ -29,9 +29,9 @@
 
 use crate::bake_grid::{PhiDomain, isotropic_to_local, rotation_arc, rotation_between_mirrors_xz};
 use crate::baked::{BakedMode, BakedSampler, Role, Tables};
-use crate::sampler::{Sample, rejection_in_leaf};
+use crate::sampler::{DensityHints, Ridge, Sample, rejection_in_leaf};
 use crate::warp_table::WarpLeaf;
-use brdf_core::geometry::{above_horizon, luminance};
+use brdf_core::geometry::{above_horizon, lift_incident, luminance};
 use brdf_core::math as m;
 use brdf_core::warp::sample_cosine_hemisphere;
 use core::sync::atomic::Ordering;
@@ -230,6 +230,33 @@ impl BakedSampler {
         let mut comps = [Component::NONE; 4];
         let n = self.components(tables, given, &mut comps);
         self.pdf_of(tables, adjoint, &comps[..n], sampled, None)
+    }
+
+    /// Where the mixture's density at a checked `given` may be concentrated (see
+    /// [`crate::DirectionSampler::density_hints`]): each neighbour tree's peaks (the
+    /// model's hints at the tree's direction) and their axis planes x = h.x and y = h.y,
+    /// carried to the local frame by the component's rotation. A lobe narrow along one axis
+    /// of its tree (Ward's as αx → 0) lies along such a rotated plane, which the model's
+    /// own hints at `given` do not name.
+    pub(crate) fn density_hints_unit(&self, role: Role, given: Vec3) -> DensityHints {
+        let (tables, _) = self.tables_for(role);
+        let mut comps = [Component::NONE; 4];
+        let n = self.components(tables, given, &mut comps);
+        let mut hints = DensityHints::default();
+        for c in &comps[..n] {
+            let s = &tables.slices[c.slice];
+            for h in self.brdf.peak_hints(lift_incident(s.wi)).as_slice() {
+                let h = h.as_dvec3();
+                hints.peaks.push(c.to_local * h);
+                for (axis, offset) in [(DVec3::X, h.x), (DVec3::Y, h.y)] {
+                    hints.ridges.push(Ridge {
+                        normal: c.to_local * axis,
+                        offset,
+                    });
+                }
+            }
+        }
+        hints
     }
 
     /// The mixture's density at `sampled` from its components (the one expression behind

@@ -37,6 +37,10 @@ impl crate::DirectionSampler for BakedAt<'_> {
         }
         self.baked.pdf_unit(Role::Importance, self.wi, wo)
     }
+
+    fn density_hints(&self) -> crate::DensityHints {
+        self.baked.density_hints_unit(Role::Importance, self.wi)
+    }
 }
 
 /// A deliberately wrong sampler for negative controls: samples like its [`BakedSampler`]
@@ -98,6 +102,10 @@ impl crate::DirectionSampler for BrokenAt<'_> {
 
     fn pdf(&self, wo: Vec3) -> f32 {
         self.broken.pdf(self.wi, wo)
+    }
+
+    fn density_hints(&self) -> crate::DensityHints {
+        self.broken.0.density_hints_unit(Role::Importance, self.wi)
     }
 }
 

@@ -7,7 +7,9 @@ use crate::baked::BakedSampler;
 use crate::baked_views::BakedAt;
 use crate::config::BuildConfig;
 use crate::error::BuildError;
-use crate::sampler::{Baseline, BaselineSampler, DirectionSampler, QuadtreeSampler, Sample};
+use crate::sampler::{
+    Baseline, BaselineSampler, DensityHints, DirectionSampler, QuadtreeSampler, Sample,
+};
 use crate::table::{DEFAULT_TABLE_RES, TableSampler};
 use crate::tree::TreeStats;
 use crate::warp::{DEFAULT_MIX, WarpSampler};
@@ -214,6 +216,13 @@ impl<B: Brdf> DirectionSampler for AnySampler<B> {
             Self::Table(s) => DirectionSampler::pdf(s, wo),
             Self::Baseline(s) => DirectionSampler::pdf(s, wo),
             Self::Baked { baked, wi } => Self::at(baked, *wi).pdf(wo),
+        }
+    }
+
+    fn density_hints(&self) -> DensityHints {
+        match self {
+            Self::Baked { baked, wi } => Self::at(baked, *wi).density_hints(),
+            _ => DensityHints::default(),
         }
     }
 }

@@ -101,9 +101,9 @@ pub use error::{BakeError, BakedError, BuildError};
 pub use factory::{AnySampler, SamplerMode};
 pub use packed::{PackedLeaf, PackedNode, PackedTree, Selected};
 pub use sampler::{
-    Baseline, BaselineSampler, DirectionSampler, LeafSample, MAX_TRIALS,
-    MAX_USABLE_EXPECTED_TRIALS, QuadtreeSampler, Sample, descent_uniform, uniform_f32, uniform_f64,
-    weight_luminance,
+    Baseline, BaselineSampler, DensityHints, DirectionSampler, LeafSample, MAX_TRIALS,
+    MAX_USABLE_EXPECTED_TRIALS, QuadtreeSampler, Ridge, Sample, descent_uniform, uniform_f32,
+    uniform_f64, weight_luminance,
 };
 pub use table::{DEFAULT_TABLE_RES, TableSampler};
 pub use tree::{LEAF, Node, Quadtree, TreeStats, albedo_of_volume};

@@ -67,6 +67,35 @@ pub trait DirectionSampler: Send + Sync {
 
     /// The density of [`DirectionSampler::sample`] at `wo` (local), **per unit solid angle**.
     fn pdf(&self, wo: Vec3) -> f32;
+
+    /// Where this sampler's density may be concentrated beyond the model's own peak hints
+    /// (local frame), for an integrator of [`DirectionSampler::pdf`] (the validation's cells)
+    /// to cut its ranges at: none by default. A baked sampler gives its neighbour trees'
+    /// peaks and ridge planes, rotated onto the incident direction.
+    fn density_hints(&self) -> DensityHints {
+        DensityHints::default()
+    }
+}
+
+/// A plane {w : `normal`·w = `offset`} of the local frame along which a density may be
+/// concentrated: a lobe narrow along one tangent axis lies along such a plane (Ward's as
+/// αx → 0 along wo.x = −wi.x, the plane with normal x̂ and offset −wi.x).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ridge {
+    /// The plane's normal (any length; an integrator scales it to unit length).
+    pub normal: DVec3,
+    /// The plane's offset along `normal`.
+    pub offset: f64,
+}
+
+/// Where a density may be concentrated: directions where it may peak sharply, and
+/// [`Ridge`] planes it may lie along (see [`DirectionSampler::density_hints`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DensityHints {
+    /// Unit directions (local frame).
+    pub peaks: alloc::vec::Vec<DVec3>,
+    /// Planes.
+    pub ridges: alloc::vec::Vec<Ridge>,
 }
 
 /// What `muestrear` accepted in a leaf ([`QuadtreeSampler::sample_leaf`]).
