@@ -30,7 +30,8 @@ impl Against {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Reason {
     /// The expected cell masses are not a distribution: their total is not positive and
-    /// finite, or a cell is negative or NaN.
+    /// finite, or a cell is negative or NaN. All 0 (f_r ≡ 0 at wi) leaves the test against
+    /// f·cos unjudged; otherwise it rejects, under either verdict.
     MassesNotADistribution {
         /// Σ I_i.
         total: f64,
@@ -92,8 +93,10 @@ impl Reason {
     #[must_use]
     pub fn concerns_own_pdf(&self) -> bool {
         match self {
-            Self::MassesNotADistribution { .. }
-            | Self::PdfAboveOne { .. }
+            // Masses that are all 0 (f_r ≡ 0 at wi) say nothing of the sampler's own pdf;
+            // broken ones (NaN, negative) break the tolerance its cells are integrated to.
+            Self::MassesNotADistribution { total } => *total != 0.0,
+            Self::PdfAboveOne { .. }
             | Self::AllLost { .. }
             | Self::Outside { .. }
             | Self::Inconsistent { .. } => true,
@@ -107,7 +110,10 @@ impl Reason {
     /// True when the reason leaves the test unjudged rather than rejected.
     #[must_use]
     pub fn is_inconclusive(&self) -> bool {
-        matches!(self, Self::TooFewDegreesOfFreedom { .. })
+        matches!(
+            self,
+            Self::TooFewDegreesOfFreedom { .. } | Self::MassesNotADistribution { total: 0.0 }
+        )
     }
 
     /// True when the reason counts for a verdict `against`.
@@ -120,6 +126,10 @@ impl Reason {
 impl fmt::Display for Reason {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
+            Self::MassesNotADistribution { total: 0.0 } => write!(
+                f,
+                "f_r is 0 everywhere above the horizon at this wi: nothing to compare with f·cos"
+            ),
             Self::MassesNotADistribution { total } => write!(
                 f,
                 "the expected masses are not a distribution (total {total}, a negative or NaN cell)"

@@ -478,3 +478,18 @@ fn a_baked_needle_rotated_off_its_axes_passes() {
         );
     }
 }
+
+/// A model that is 0 everywhere at wi (Lambert with albedo 0) leaves nothing to compare the
+/// samples with against f·cos: that test is unjudged (inconclusive), and the sampler is
+/// judged on its own pdf alone. The all-zero masses used to reject both, as if they were
+/// broken (NaN or negative).
+#[test]
+fn a_model_that_is_zero_at_wi_is_unjudged_against_f_cos() {
+    let b = model("lambert", &["albedo=0"]);
+    let wi = dir(60.0, 271.3);
+    let s = BaselineSampler::new(&*b, wi, Baseline::Cosine).unwrap();
+    let v = Validation::new(&*b, wi, CellGrid::Square { res: 25 }, 1e-7).unwrap();
+    let r = run(&v, &s, 60);
+    assert_eq!(r.verdict_own(), Verdict::Passed, "{:?}", r.reasons);
+    assert_eq!(r.verdict(), Verdict::Inconclusive, "{:?}", r.reasons);
+}
