@@ -93,18 +93,12 @@ pub(crate) fn sample_power_cosine64(u: Vec2, n: f64) -> DVec3 {
 }
 
 /// Density of [`sample_power_cosine`], per unit solid angle about the lobe axis:
-/// (n+1)/(2π)·cos^n α (0 for cos α ≤ 0, except n = 0).
+/// (n+1)/(2π)·cos^n α, 0 for cos α ≤ 0 (which the sampler never draws, n = 0 included).
 #[inline]
 #[must_use]
 pub fn power_cosine_pdf(cos_alpha: f32, n: f32) -> f32 {
     let (c, n) = (f64::from(cos_alpha), f64::from(n));
-    let p = if n == 0.0 {
-        1.0
-    } else if c <= 0.0 {
-        0.0
-    } else {
-        m::pow(c, n)
-    };
+    let p = if c <= 0.0 { 0.0 } else { m::pow(c, n) };
     ((n + 1.0) * INV_2PI * p) as f32
 }
 

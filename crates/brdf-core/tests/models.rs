@@ -569,6 +569,10 @@ mod samplers {
         ("blinn-phong", &[]),
         ("blinn-phong", &["n=2000", "kd=0"]),
         ("lewis-phong", &[]),
+        // n = 0: a constant lobe (pow(0, 0) = 1) over the whole hemisphere, which a lobe
+        // about the mirror direction does not cover.
+        ("phong", &["n=0", "kd=0"]),
+        ("lewis-phong", &["n=0", "kd=0.2"]),
         ("cook-torrance", &[]),
         ("cook-torrance", &["m=0.1", "kd=0.2"]),
         ("oren-nayar", &[]),

@@ -116,15 +116,26 @@ impl MirrorLobe {
         crate::geometry::cos_power(r, wo, self.n)
     }
 
-    /// Density of [`MirrorLobe::sample`] per unit solid angle: (n+1)/(2π) cos^n α.
+    /// Density of [`MirrorLobe::sample`] per unit solid angle: (n+1)/(2π) cos^n α, 0 where
+    /// cos α ≤ 0; for n = 0, cos θo/π (see `sample`).
     #[inline]
     pub fn pdf(&self, wi: DVec3, wo: DVec3) -> f64 {
+        if self.n == 0.0 {
+            return cosine_pdf64(wo);
+        }
         (self.n + 1.0) * 0.5 * FRAC_1_PI * self.value(wi, wo)
     }
 
-    /// A power-cosine direction about r(wi); `None` below the horizon.
+    /// A power-cosine direction about r(wi); `None` below the horizon. For n = 0 the lobe is
+    /// constant over the whole hemisphere (pow(0, 0) = 1: MODELS.md's convention), also
+    /// where cos α ≤ 0, which a lobe about r(wi) never reaches: f·cos is then ∝ cos θo, and
+    /// the direction is cosine-distributed about the normal.
     #[inline]
     pub fn sample(&self, wi: Vec3, u: Vec2) -> Option<Vec3> {
+        if self.n == 0.0 {
+            let wo = crate::warp::sample_cosine_hemisphere(u);
+            return (wo.z > 0.0).then_some(wo);
+        }
         let wi = wi.as_dvec3().normalize();
         let r = DVec3::new(-wi.x, -wi.y, wi.z);
         let (x, y) = r.any_orthonormal_pair();
