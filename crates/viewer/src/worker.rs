@@ -361,10 +361,15 @@ pub fn process(req: &Request, live: &dyn Fn() -> bool, send: &dyn Fn(Update)) {
         Some(b) => b,
         None => &tree_sampler,
     };
-    // The second χ²'s cells: the sampler's own pdf integrated like the masses (the tree's
-    // rejection sampler is f·cos over its volume: the first χ² judges that shape already).
+    // The second χ²'s cells: the sampler's own pdf integrated like the masses, cut where the
+    // sampler says its density may be concentrated (a baked sampler's rotated neighbour
+    // lobes); the tree's rejection sampler is f·cos over its volume: the first χ² judges
+    // that shape already.
     if req.sampler != SamplerKind::Rejection {
-        let own = validation.own_probability(&|w: Vec3| f64::from(sampler.pdf(w)));
+        let own = validation.own_probability_with(
+            &|w: Vec3| f64::from(sampler.pdf(w)),
+            &sampler.density_hints(),
+        );
         send(Update::ExpectedOwn(g, Arc::new(own)));
         if !live() {
             return;
