@@ -60,61 +60,60 @@ impl Hints {
         h
     }
 
-    /// The ridge planes' crossings of the circle of radius r at height z, as angles φ.
+    /// The ridge planes' crossings of the circle of radius r at height z, as angles φ:
+    /// r·(n.x·cos φ + n.y·sin φ) = c − n.z·z.
     fn circle_crossings(&self, r: f64, z: f64, mut push: impl FnMut(f64)) {
         for &(n, c) in &self.ridges {
-            // n.x·r·cos φ + n.y·r·sin φ = c − n.z·z.
-            let a = r * m::sqrt(n.x * n.x + n.y * n.y);
-            if a > 0.0 {
-                let q = (c - n.z * z) / a;
-                if q.abs() <= 1.0 {
-                    let (phi0, d) = (m::atan2(n.y, n.x), m::acos(q));
-                    push(phi0 + d);
-                    push(phi0 - d);
-                }
-            }
+            cos_sin_roots(n.x, n.y, r, c - n.z * z, &mut push);
+        }
+    }
+
+    /// The ridge planes' crossings of the square grid chart's line of constant x = sin s,
+    /// (x, cs·sin t, cs·cos t), as angles t: cs·(n.z·cos t + n.y·sin t) = c − n.x·x.
+    fn line_crossings(&self, x: f64, cs: f64, mut push: impl FnMut(f64)) {
+        for &(n, c) in &self.ridges {
+            cos_sin_roots(n.z, n.y, cs, c - n.x * x, &mut push);
         }
     }
 
     /// The heights z where a ridge plane touches a circle of constant z (where its two
-    /// crossings meet): z = c·n.z ± |n_xy|·√(1 − c²).
+    /// crossings meet).
     fn tangent_heights(&self, mut push: impl FnMut(f64)) {
         for &(n, c) in &self.ridges {
-            if c.abs() <= 1.0 {
-                let b = m::sqrt(n.x * n.x + n.y * n.y) * m::sqrt(1.0 - c * c);
-                push(c * n.z + b);
-                push(c * n.z - b);
-            }
+            touching(n.z, n.x * n.x + n.y * n.y, c, &mut push);
         }
     }
 
-    /// Where a ridge plane touches a line of constant x = sin s of the square grid's chart:
-    /// x = c·n.x ± |n_yz|·√(1 − c²).
+    /// The x where a ridge plane touches a line of constant x of the square grid's chart.
     fn tangent_xs(&self, mut push: impl FnMut(f64)) {
         for &(n, c) in &self.ridges {
-            if c.abs() <= 1.0 {
-                let b = m::sqrt(n.y * n.y + n.z * n.z) * m::sqrt(1.0 - c * c);
-                push(c * n.x + b);
-                push(c * n.x - b);
-            }
+            touching(n.x, n.y * n.y + n.z * n.z, c, &mut push);
         }
     }
+}
 
-    /// The ridge planes' crossings of the chart's line x = sin s, (x, cs·sin t, cs·cos t),
-    /// as angles t.
-    fn line_crossings(&self, x: f64, cs: f64, mut push: impl FnMut(f64)) {
-        for &(n, c) in &self.ridges {
-            // cs·(n.y·sin t + n.z·cos t) = c − n.x·x.
-            let a = cs * m::sqrt(n.y * n.y + n.z * n.z);
-            if a > 0.0 {
-                let q = (c - n.x * x) / a;
-                if q.abs() <= 1.0 {
-                    let (t0, d) = (m::atan2(n.y, n.z), m::acos(q));
-                    push(t0 + d);
-                    push(t0 - d);
-                }
-            }
+/// The angles θ with scale·(p·cos θ + q·sin θ) = rhs: atan2(q, p) ± acos(rhs/(scale·|(p, q)|)),
+/// none when that is out of [−1, 1].
+fn cos_sin_roots(p: f64, q: f64, scale: f64, rhs: f64, push: &mut impl FnMut(f64)) {
+    let a = scale * m::sqrt(p * p + q * q);
+    if a > 0.0 {
+        let k = rhs / a;
+        if k.abs() <= 1.0 {
+            let (theta0, d) = (m::atan2(q, p), m::acos(k));
+            push(theta0 + d);
+            push(theta0 - d);
         }
+    }
+}
+
+/// Where the plane n·w = c (unit n) touches the circles of the unit sphere with a constant
+/// coordinate e·w = a (n_e = n·e, `rest2` = 1 − n_e², the square of n's other part): at
+/// a = c·n_e ± √rest2·√(1 − c²).
+fn touching(n_e: f64, rest2: f64, c: f64, push: &mut impl FnMut(f64)) {
+    if c.abs() <= 1.0 {
+        let b = m::sqrt(rest2) * m::sqrt(1.0 - c * c);
+        push(c * n_e + b);
+        push(c * n_e - b);
     }
 }
 
