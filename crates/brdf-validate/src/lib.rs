@@ -49,7 +49,7 @@ pub use stats::{
 };
 pub use suite::{
     Event, MAX_SAMPLES, Settings, SuiteReport, TestOutcome, WEIGHT_FLOOR, WeightTest, check,
-    splitmix64, suite,
+    check_with, splitmix64, suite,
 };
 pub use validation::{CHUNK, Validation};
 

@@ -12,6 +12,7 @@ use crate::stats::sidak;
 use crate::validation::{CHUNK, Validation};
 use brdf_core::Brdf;
 use glam::Vec3;
+use quadtree_sampler::DensityHints;
 use rand_core::SeedableRng;
 use std::fmt;
 use std::time::Instant;
@@ -372,13 +373,28 @@ pub fn check<S: Sampler + ?Sized>(
     peaks: &[Vec3],
     settings: &Settings,
 ) -> Result<SuiteReport, ValidateError> {
+    let hints = DensityHints {
+        peaks: peaks.iter().map(|h| h.as_dvec3()).collect(),
+        ridges: Vec::new(),
+    };
+    check_with(sampler, fcos, &hints, settings)
+}
+
+/// [`check`] with ridge planes besides the peaks (see [`Validation::of_fcos_with`]): for a
+/// BSDF with a lobe narrow along an axis that is not the frame's x or y.
+pub fn check_with<S: Sampler + ?Sized>(
+    sampler: &S,
+    fcos: impl Fn(Vec3) -> f64 + Sync,
+    hints: &DensityHints,
+    settings: &Settings,
+) -> Result<SuiteReport, ValidateError> {
     settings.check(1)?;
     let alpha = sidak(settings.alpha, settings.tests(1));
     let mut tests = Vec::with_capacity(settings.grids.len());
     let mut albedo = 0.0;
     for (g, &grid) in settings.grids.iter().enumerate() {
         let t0 = Instant::now();
-        let v = Validation::of_fcos(&fcos, peaks, grid, settings.tol)?;
+        let v = Validation::of_fcos_with(&fcos, hints, grid, settings.tol)?;
         albedo = v.mass().iter().sum();
         let report = v.test_chunked(
             sampler,

@@ -115,10 +115,27 @@ impl Validation {
         grid: CellGrid,
         tol: f64,
     ) -> Result<Self, ValidateError> {
+        let hints = DensityHints {
+            peaks: peaks.iter().map(|h| h.as_dvec3()).collect(),
+            ridges: Vec::new(),
+        };
+        Self::of_fcos_with(fcos, &hints, grid, tol)
+    }
+
+    /// [`Validation::of_fcos`] with ridge planes besides the peaks: `hints.peaks` as `peaks`
+    /// there (each with its axis planes x = h.x and y = h.y), and `hints.ridges` the planes
+    /// n·w = c a lobe narrow along one axis lies along when that axis is not the frame's
+    /// (an anisotropic BSDF whose tangent is rotated about the normal). Both the masses and
+    /// the sampler's own cell probabilities are cut there.
+    pub fn of_fcos_with(
+        fcos: impl Fn(Vec3) -> f64 + Sync,
+        hints: &DensityHints,
+        grid: CellGrid,
+        tol: f64,
+    ) -> Result<Self, ValidateError> {
         grid.check()?;
         check_tolerance(tol)?;
-        let peaks: Vec<DVec3> = peaks.iter().map(|h| h.as_dvec3()).collect();
-        let hints = Hints::of_model(&peaks);
+        let hints = Hints::of_model(&hints.peaks).with(&[], &planes(hints));
         // Per unit projected area: f·cos dω = f dA.
         let per_area = |w: Vec3| {
             if w.z > 0.0 {
@@ -189,8 +206,7 @@ impl Validation {
         pdf: &(dyn Fn(Vec3) -> f64 + Sync),
         hints: &DensityHints,
     ) -> Vec<f64> {
-        let ridges: Vec<(DVec3, f64)> = hints.ridges.iter().map(|r| (r.normal, r.offset)).collect();
-        let all = self.hints.with(&hints.peaks, &ridges);
+        let all = self.hints.with(&hints.peaks, &planes(hints));
         let total: f64 = self.mass.iter().sum();
         self.grid
             .integrate_all(self.tol / total.max(1e-300), &all, &|w: Vec3| {
@@ -378,6 +394,11 @@ impl Validation {
             reasons,
         }
     }
+}
+
+/// The ridge planes of `hints` as (normal, offset) pairs.
+fn planes(hints: &DensityHints) -> Vec<(DVec3, f64)> {
+    hints.ridges.iter().map(|r| (r.normal, r.offset)).collect()
 }
 
 fn check_tolerance(tol: f64) -> Result<(), ValidateError> {

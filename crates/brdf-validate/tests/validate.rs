@@ -493,3 +493,58 @@ fn a_model_that_is_zero_at_wi_is_unjudged_against_f_cos() {
     assert_eq!(r.verdict_own(), Verdict::Passed, "{:?}", r.reasons);
     assert_eq!(r.verdict(), Verdict::Inconclusive, "{:?}", r.reasons);
 }
+
+/// `check_with` takes ridge planes for a BSDF outside the workspace whose needle runs along
+/// an axis that is not the frame's: Ward αx = 0.001 with its tangent turned 30° about the
+/// normal, sampled exactly by Ward's own sampler in the turned frame. Given the mirror
+/// direction alone, the masses and the sampler's own cell probabilities miss part of the
+/// needle, and the sampler is rejected; given the needle's plane as well, it passes.
+#[test]
+fn a_needle_along_a_turned_axis_passes_when_its_plane_is_named() {
+    use brdf_validate::{DensityHints, FnSampler, Ridge, Settings, check, check_with};
+    let b = model("ward", &["alpha_x=0.001", "kd=0"]);
+    let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+    // Model frame → local frame: a turn by 30° about the normal.
+    let turn = glam::DMat3::from_cols(
+        glam::DVec3::new(c, s, 0.0),
+        glam::DVec3::new(-s, c, 0.0),
+        glam::DVec3::Z,
+    );
+    let to_local = |w: Vec3| (turn * w.as_dvec3()).as_vec3();
+    let to_model = |w: Vec3| (turn.transpose() * w.as_dvec3()).as_vec3();
+    let wi = dir(60.0, 20.0);
+    let wi_m = to_model(wi);
+    let sampler = FnSampler::new(
+        "turned ward",
+        |uc, u| {
+            let x = b.sample_continuous(wi_m, uc, u)?;
+            Some((to_local(x.wo), x.pdf))
+        },
+        |wo| b.pdf_continuous(wi_m, to_model(wo)),
+    );
+    let fcos = |wo: Vec3| {
+        f64::from(brdf_core::geometry::luminance(b.eval(wi_m, to_model(wo)))) * f64::from(wo.z)
+    };
+    let settings = Settings {
+        samples: 200_000,
+        against: Against::OwnPdf,
+        mean_weight: true,
+        seed: 7,
+        ..Settings::default()
+    };
+    let mirror = Vec3::new(-wi.x, -wi.y, wi.z);
+    let without = check(&sampler, fcos, &[mirror], &settings).unwrap();
+    println!("{without}");
+    let hints = DensityHints {
+        peaks: vec![mirror.as_dvec3()],
+        // The needle: wo.x = −wi.x in the model frame.
+        ridges: vec![Ridge {
+            normal: turn * glam::DVec3::X,
+            offset: -f64::from(wi_m.x),
+        }],
+    };
+    let with = check_with(&sampler, fcos, &hints, &settings).unwrap();
+    println!("{with}");
+    assert!(!without.passed(), "{without}");
+    assert!(with.passed(), "{with}");
+}
