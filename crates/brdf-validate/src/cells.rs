@@ -5,6 +5,7 @@ use crate::error::ValidateError;
 use crate::integrate::{MAX_BREAKS, MAX_PIECES, adaptive};
 use brdf_core::math as m;
 use glam::{DVec3, Vec3};
+use quadtree_sampler::Ridge;
 use std::f64::consts::PI;
 
 /// Most peak directions of a model a cell's integration uses (as many as a model gives).
@@ -24,8 +25,8 @@ const MAX_RIDGES: usize = 24;
 #[derive(Clone, Debug, Default, PartialEq)]
 pub(crate) struct Hints {
     peaks: Vec<DVec3>,
-    /// (unit normal n, offset c).
-    ridges: Vec<(DVec3, f64)>,
+    /// Unit normals.
+    ridges: Vec<Ridge>,
 }
 
 impl Hints {
@@ -39,7 +40,9 @@ impl Hints {
             .collect();
         let ridges = peaks
             .iter()
-            .flat_map(|h| [(DVec3::X, h.x), (DVec3::Y, h.y)])
+            .flat_map(|h| {
+                [(DVec3::X, h.x), (DVec3::Y, h.y)].map(|(normal, offset)| Ridge { normal, offset })
+            })
             .collect();
         Self { peaks, ridges }
     }
@@ -47,14 +50,17 @@ impl Hints {
     /// These hints and more: `peaks` (without axis planes) and `ridges` (normals scaled to
     /// unit length; zero or non-finite ones dropped), up to [`MAX_PEAKS`] and
     /// [`MAX_RIDGES`] in all.
-    pub(crate) fn with(&self, peaks: &[DVec3], ridges: &[(DVec3, f64)]) -> Self {
+    pub(crate) fn with(&self, peaks: &[DVec3], ridges: &[Ridge]) -> Self {
         let mut h = self.clone();
         h.peaks
             .extend(peaks.iter().copied().filter(|p| p.is_finite()));
         h.peaks.truncate(MAX_PEAKS);
-        h.ridges.extend(ridges.iter().filter_map(|&(n, c)| {
-            let l = n.length();
-            (l > 0.0 && l.is_finite() && c.is_finite()).then(|| (n / l, c / l))
+        h.ridges.extend(ridges.iter().filter_map(|r| {
+            let l = r.normal.length();
+            (l > 0.0 && l.is_finite() && r.offset.is_finite()).then(|| Ridge {
+                normal: r.normal / l,
+                offset: r.offset / l,
+            })
         }));
         h.ridges.truncate(MAX_RIDGES);
         h
@@ -63,7 +69,11 @@ impl Hints {
     /// The ridge planes' crossings of the circle of radius r at height z, as angles φ:
     /// r·(n.x·cos φ + n.y·sin φ) = c − n.z·z.
     fn circle_crossings(&self, r: f64, z: f64, mut push: impl FnMut(f64)) {
-        for &(n, c) in &self.ridges {
+        for &Ridge {
+            normal: n,
+            offset: c,
+        } in &self.ridges
+        {
             cos_sin_roots(n.x, n.y, r, c - n.z * z, &mut push);
         }
     }
@@ -71,7 +81,11 @@ impl Hints {
     /// The ridge planes' crossings of the square grid chart's line of constant x = sin s,
     /// (x, cs·sin t, cs·cos t), as angles t: cs·(n.z·cos t + n.y·sin t) = c − n.x·x.
     fn line_crossings(&self, x: f64, cs: f64, mut push: impl FnMut(f64)) {
-        for &(n, c) in &self.ridges {
+        for &Ridge {
+            normal: n,
+            offset: c,
+        } in &self.ridges
+        {
             cos_sin_roots(n.z, n.y, cs, c - n.x * x, &mut push);
         }
     }
@@ -79,14 +93,22 @@ impl Hints {
     /// The heights z where a ridge plane touches a circle of constant z (where its two
     /// crossings meet).
     fn tangent_heights(&self, mut push: impl FnMut(f64)) {
-        for &(n, c) in &self.ridges {
+        for &Ridge {
+            normal: n,
+            offset: c,
+        } in &self.ridges
+        {
             touching(n.z, n.x * n.x + n.y * n.y, c, &mut push);
         }
     }
 
     /// The x where a ridge plane touches a line of constant x of the square grid's chart.
     fn tangent_xs(&self, mut push: impl FnMut(f64)) {
-        for &(n, c) in &self.ridges {
+        for &Ridge {
+            normal: n,
+            offset: c,
+        } in &self.ridges
+        {
             touching(n.x, n.y * n.y + n.z * n.z, c, &mut push);
         }
     }

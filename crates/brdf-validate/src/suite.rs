@@ -273,8 +273,9 @@ fn chunk_rng(seed: u64, test: u64, chunk: u64) -> rand_pcg::Pcg64 {
 /// of `settings` against the model's f·cos (integrated by [`Validation::new`]); with
 /// [`Settings::mean_weight`], each sampler's mean weight is then tested against the model's
 /// albedo (the cell masses' total at that wi). `on_event` sees every finished test
-/// (pictures, progress). Test k·G + g (incident direction k, grid g) draws from seeds derived from `settings.seed`, k and g
-/// alone, so a report does not depend on the thread count.
+/// (pictures, progress). Test k·G + g (incident direction k, grid g) draws from seeds
+/// derived from `settings.seed`, k and g alone, so a report does not depend on the thread
+/// count.
 pub fn suite<B, S, E>(
     brdf: &B,
     wis: &[Vec3],
@@ -373,11 +374,7 @@ pub fn check<S: Sampler + ?Sized>(
     peaks: &[Vec3],
     settings: &Settings,
 ) -> Result<SuiteReport, ValidateError> {
-    let hints = DensityHints {
-        peaks: peaks.iter().map(|h| h.as_dvec3()).collect(),
-        ridges: Vec::new(),
-    };
-    check_with(sampler, fcos, &hints, settings)
+    check_with(sampler, fcos, &DensityHints::of_peaks(peaks), settings)
 }
 
 /// [`check`] with ridge planes besides the peaks (see [`Validation::of_fcos_with`]): for a

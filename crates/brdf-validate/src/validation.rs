@@ -115,11 +115,7 @@ impl Validation {
         grid: CellGrid,
         tol: f64,
     ) -> Result<Self, ValidateError> {
-        let hints = DensityHints {
-            peaks: peaks.iter().map(|h| h.as_dvec3()).collect(),
-            ridges: Vec::new(),
-        };
-        Self::of_fcos_with(fcos, &hints, grid, tol)
+        Self::of_fcos_with(fcos, &DensityHints::of_peaks(peaks), grid, tol)
     }
 
     /// [`Validation::of_fcos`] with ridge planes besides the peaks: `hints.peaks` as `peaks`
@@ -135,7 +131,7 @@ impl Validation {
     ) -> Result<Self, ValidateError> {
         grid.check()?;
         check_tolerance(tol)?;
-        let hints = Hints::of_model(&hints.peaks).with(&[], &planes(hints));
+        let hints = Hints::of_model(&hints.peaks).with(&[], &hints.ridges);
         // Per unit projected area: f·cos dω = f dA.
         let per_area = |w: Vec3| {
             if w.z > 0.0 {
@@ -206,7 +202,7 @@ impl Validation {
         pdf: &(dyn Fn(Vec3) -> f64 + Sync),
         hints: &DensityHints,
     ) -> Vec<f64> {
-        let all = self.hints.with(&hints.peaks, &planes(hints));
+        let all = self.hints.with(&hints.peaks, &hints.ridges);
         let total: f64 = self.mass.iter().sum();
         self.grid
             .integrate_all(self.tol / total.max(1e-300), &all, &|w: Vec3| {
@@ -394,11 +390,6 @@ impl Validation {
             reasons,
         }
     }
-}
-
-/// The ridge planes of `hints` as (normal, offset) pairs.
-fn planes(hints: &DensityHints) -> Vec<(DVec3, f64)> {
-    hints.ridges.iter().map(|r| (r.normal, r.offset)).collect()
 }
 
 fn check_tolerance(tol: f64) -> Result<(), ValidateError> {

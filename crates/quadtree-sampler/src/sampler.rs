@@ -98,6 +98,17 @@ pub struct DensityHints {
     pub ridges: alloc::vec::Vec<Ridge>,
 }
 
+impl DensityHints {
+    /// Peaks alone (f32 directions, as a model's peak hints are), no planes.
+    #[must_use]
+    pub fn of_peaks(peaks: &[Vec3]) -> Self {
+        Self {
+            peaks: peaks.iter().map(|h| h.as_dvec3()).collect(),
+            ridges: alloc::vec::Vec::new(),
+        }
+    }
+}
+
 /// What `muestrear` accepted in a leaf ([`QuadtreeSampler::sample_leaf`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LeafSample {
