@@ -47,19 +47,23 @@ impl Hints {
         Self { peaks, ridges }
     }
 
-    /// These hints and more: `peaks` (without axis planes) and `ridges` (normals scaled to
-    /// unit length; zero or non-finite ones dropped), up to [`MAX_PEAKS`] and
-    /// [`MAX_RIDGES`] in all.
+    /// These hints and more: `peaks` (without axis planes; non-finite ones dropped) and
+    /// `ridges` (normals scaled to unit length; a zero or non-finite normal or offset
+    /// dropped), up to [`MAX_PEAKS`] and [`MAX_RIDGES`] in all.
     pub(crate) fn with(&self, peaks: &[DVec3], ridges: &[Ridge]) -> Self {
         let mut h = self.clone();
         h.peaks
             .extend(peaks.iter().copied().filter(|p| p.is_finite()));
         h.peaks.truncate(MAX_PEAKS);
         h.ridges.extend(ridges.iter().filter_map(|r| {
-            let l = r.normal.length();
-            (l > 0.0 && l.is_finite() && r.offset.is_finite()).then(|| Ridge {
-                normal: r.normal / l,
-                offset: r.offset / l,
+            // Scaled by its largest component first, so that no length overflows or
+            // underflows.
+            let s = r.normal.abs().max_element();
+            let (n, c) = (r.normal / s, r.offset / s);
+            let l = n.length();
+            (s > 0.0 && s.is_finite() && c.is_finite()).then(|| Ridge {
+                normal: n / l,
+                offset: c / l,
             })
         }));
         h.ridges.truncate(MAX_RIDGES);
@@ -431,6 +435,40 @@ impl CellGrid {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Degenerate ridges and peaks (a zero or non-finite normal or offset, a NaN peak) are
+    /// dropped; a plane that misses the sphere (|c| > 1) cuts nothing; a huge normal is
+    /// scaled to unit length. With what remains the cells still sum to the disk's area.
+    #[test]
+    fn degenerate_hints_are_dropped_and_cut_nothing() {
+        let r = |normal: DVec3, offset: f64| Ridge { normal, offset };
+        let h = Hints::default().with(
+            &[DVec3::NAN, DVec3::Z],
+            &[
+                r(DVec3::ZERO, 0.5),
+                r(DVec3::X, f64::NAN),
+                r(DVec3::new(f64::INFINITY, 0.0, 0.0), 0.1),
+                r(DVec3::Y, 5.0),
+                r(DVec3::new(1e300, 0.0, 0.0), 5e299),
+                r(DVec3::new(0.0, 0.0, 1e-310), 0.0),
+            ],
+        );
+        assert_eq!(h.peaks, vec![DVec3::Z]);
+        assert_eq!(
+            h.ridges,
+            vec![r(DVec3::Y, 5.0), r(DVec3::X, 0.5), r(DVec3::Z, 0.0)]
+        );
+        for grid in [
+            CellGrid::Square { res: 7 },
+            CellGrid::Polar {
+                rings: 5,
+                sectors: 9,
+            },
+        ] {
+            let area: f64 = grid.integrate_all(1e-10, &h, &|_| 1.0).iter().sum();
+            assert!((area - PI).abs() < 1e-8, "{grid:?}: {area}");
+        }
+    }
 
     #[test]
     fn cells_cover_the_disk_and_sum_to_its_area() {
