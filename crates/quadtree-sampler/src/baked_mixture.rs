@@ -31,7 +31,7 @@ use crate::bake_grid::{PhiDomain, isotropic_to_local, rotation_arc, rotation_bet
 use crate::baked::{BakedMode, BakedSampler, Role, Tables};
 use crate::sampler::{DensityHints, Ridge, Sample, rejection_in_leaf};
 use crate::warp_table::WarpLeaf;
-use brdf_core::geometry::{above_horizon, lift_incident, luminance};
+use brdf_core::geometry::{above_horizon, lift_incident, luminance, normalize_f64};
 use brdf_core::math as m;
 use brdf_core::warp::sample_cosine_hemisphere;
 use core::sync::atomic::Ordering;
@@ -59,18 +59,16 @@ fn to_local(c: &Component, w: Vec3) -> Vec3 {
 }
 
 /// `v` normalised (0 for a zero, infinite or NaN `v`), a deterministic function of its bits
-/// that `pdf` and the pdf a sample carries share. A sample's direction, and almost every
-/// direction a caller asks about, is unit to f32 rounding: there |v|² = 1 + e with
-/// |e| < 10⁻⁵, and 1/|v| = (1 + e)^(−½) = 1 − e/2 + 3e²/8 to within 5|e|³/16 < 10⁻¹⁵ —
-/// two multiplies and an add instead of a square root and a division on the sample's
-/// critical path.
+/// that `pdf` and the pdf a sample carries share: [`normalize_f64`] (two multiply-adds for
+/// the near-unit vectors samples and callers pass, instead of a square root and a division on
+/// the sample's critical path), guarded so that a degenerate `v` gives 0 rather than NaN.
 #[inline(always)]
 fn near_unit(v: DVec3) -> DVec3 {
-    let e = v.length_squared() - 1.0;
-    if e.abs() < 1e-5 {
-        v * (1.0 - e * (0.5 - 0.375 * e))
+    let l2 = v.length_squared();
+    if l2 > 0.0 && l2.is_finite() {
+        normalize_f64(v)
     } else {
-        v.normalize_or_zero()
+        DVec3::ZERO
     }
 }
 
