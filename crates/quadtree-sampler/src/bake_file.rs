@@ -7,17 +7,17 @@
 //! | 8 | magic `BRDFBAKE` |
 //! | 4 | format version ([`BAKE_FORMAT_VERSION`]) |
 //! | 8 | payload length n |
-//! | n | payload: the model name, its parameters as `name=value`, the bake configuration, the grid's φ domain, and per tree its wi, volume and both layouts' nodes, encoded with `postcard` (LEB128 integers, little-endian floats) |
+//! | n | payload: the model name, its parameters as `name=value`, the bake configuration, the grid's φ domain, per tree its wi, volume and both layouts' nodes, and per transport direction and mode the grid cells answered by their nearest tree, encoded with `postcard` (LEB128 integers, little-endian floats) |
 //! | 4 | CRC-32 (IEEE) of everything before it |
 //!
 //! Reading checks, in order: the magic, the version, the length against the file's size
 //! (truncated or trailing bytes), the checksum (a flipped bit anywhere), the payload's
 //! decoding, the model (registered, parameters valid), the configuration (in range, and the
 //! grid it implies is the one recorded: the model's declared symmetries have not changed),
-//! and every tree's structure. Each failure is its own [`BakeFileError`]; nothing panics,
+//! every tree's structure, and that the nearest-tree cells fit the grid. Each failure is its own [`BakeFileError`]; nothing panics,
 //! and no length in the file is trusted before the checksum has passed.
 
-use crate::bake_grid::{BakeGrid, PhiDomain};
+use crate::bake_grid::{BakeGrid, Nearest, PhiDomain};
 use crate::baked::{BakeConfig, BakedSampler, Slice, Tables};
 use crate::config::{BuildConfig, IntegrationRule};
 use crate::packed::PackedTree;
@@ -40,8 +40,10 @@ pub const BAKE_MAGIC: [u8; 8] = *b"BRDFBAKE";
 /// ([`crate::proposal::Shape`], in bits 3–26 of a leaf's link word). Version 5: the root
 /// and its children may use the polar chart on concentric trees too, and a square or polar
 /// leaf may carry a fine height shape (its five further levels in the leaf's third data
-/// word). A file of any other version is a typed error (SPEC §7): bake it again.
-pub const BAKE_FORMAT_VERSION: u32 = 5;
+/// word). Version 6: per transport direction and mode, the grid cells a query answers with
+/// its nearest tree (measured at the bake). A file of any other version is a typed error
+/// (SPEC §7): bake it again.
+pub const BAKE_FORMAT_VERSION: u32 = 6;
 
 const HEADER: usize = 8 + 4 + 8;
 const TRAILER: usize = 4;
@@ -100,7 +102,8 @@ pub enum BakeFileError {
     /// A recorded option is out of range or names an unknown variant.
     Config(&'static str),
     /// The recorded grid is not the grid the model and configuration give (its symmetry
-    /// declaration or the grid rules changed since the file was written).
+    /// declaration or the grid rules changed since the file was written), or the recorded
+    /// nearest-tree cells do not fit it.
     GridMismatch,
     /// A tree's nodes are not a valid tree.
     Tree {
@@ -176,14 +179,28 @@ struct SliceRecord {
     warp: Vec<(u32, f32)>,
 }
 
+/// One mode's [`Nearest`] cells.
+#[derive(Serialize, Deserialize)]
+struct NearestRecord {
+    theta: Vec<bool>,
+    phi: Vec<bool>,
+}
+
+/// The trees of one transport direction and their nearest-tree cells (rejection, warp).
+#[derive(Serialize, Deserialize)]
+struct TablesRecord {
+    slices: Vec<SliceRecord>,
+    nearest: [NearestRecord; 2],
+}
+
 #[derive(Serialize, Deserialize)]
 struct Record {
     model: String,
     params: Vec<String>,
     config: ConfigRecord,
     domain: u8,
-    forward: Vec<SliceRecord>,
-    adjoint: Option<Vec<SliceRecord>>,
+    forward: TablesRecord,
+    adjoint: Option<TablesRecord>,
 }
 
 fn map_code(m: DiskMap) -> u8 {
@@ -282,12 +299,42 @@ fn slice_record(s: &Slice) -> SliceRecord {
     }
 }
 
+fn tables_record(t: &Tables) -> TablesRecord {
+    TablesRecord {
+        slices: t.slices.iter().map(slice_record).collect(),
+        nearest: t.nearest.each_ref().map(|n| NearestRecord {
+            theta: n.theta.clone(),
+            phi: n.phi.clone(),
+        }),
+    }
+}
+
+fn tables_from(
+    record: TablesRecord,
+    grid: &BakeGrid,
+    map: DiskMap,
+    first_index: usize,
+) -> Result<Tables, BakeFileError> {
+    let TablesRecord { slices, nearest } = record;
+    let nearest = nearest.map(|n| Nearest {
+        theta: n.theta,
+        phi: n.phi,
+    });
+    if nearest.iter().any(|n| !n.fits(grid)) {
+        return Err(BakeFileError::GridMismatch);
+    }
+    Ok(Tables {
+        slices: slices_from(slices, grid, map, first_index)?,
+        nearest,
+    })
+}
+
 fn slices_from(
     records: Vec<SliceRecord>,
     grid: &BakeGrid,
     map: DiskMap,
     first_index: usize,
-) -> Result<Tables, BakeFileError> {
+) -> Result<Vec<Slice>, BakeFileError> {
     if records.len() != grid.len() {
         return Err(BakeFileError::GridMismatch);
     }
@@ -316,7 +363,7 @@ fn slices_from(
         }
         slices.push(Slice::new(wi, tree, warp));
     }
-    Ok(Tables { slices })
+    Ok(slices)
 }
 
 /// Little-endian word of `n` bytes at `at` (a truncation error where `bytes` ends first).
@@ -371,8 +418,8 @@ impl BakedSampler {
                 .collect(),
             config: ConfigRecord::of(self.config()),
             domain: domain_code(self.grid().domain()),
-            forward: forward.slices.iter().map(slice_record).collect(),
-            adjoint: adjoint.map(|t| t.slices.iter().map(slice_record).collect()),
+            forward: tables_record(forward),
+            adjoint: adjoint.map(tables_record),
         };
         // Encoding into a Vec cannot fail for these plain types.
         let payload = postcard::to_allocvec(&record).unwrap_or_default();
@@ -421,10 +468,10 @@ impl BakedSampler {
             return Err(BakeFileError::GridMismatch);
         }
         let map = config.build.map;
-        let forward = slices_from(record.forward, &grid, map, 0)?;
+        let forward = tables_from(record.forward, &grid, map, 0)?;
         let adjoint = record
             .adjoint
-            .map(|a| slices_from(a, &grid, map, grid.len()))
+            .map(|a| tables_from(a, &grid, map, grid.len()))
             .transpose()?;
         Ok(Self::from_parts(brdf, config, grid, forward, adjoint))
     }
@@ -552,3 +599,36 @@ mod files {
 
 #[cfg(feature = "std")]
 pub use files::{BakeIoError, temporary_beside, write_atomically};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::BakeConfig;
+
+    /// A file whose nearest-tree cells do not fit its grid (one flag short, or φ flags on an
+    /// isotropic grid) is a typed error, not an index out of range at the first query; the
+    /// file as written reads back equal, cells included.
+    #[test]
+    fn nearest_cells_that_do_not_fit_the_grid_are_refused() {
+        let phong = registry::create("phong", ["n=100"]).unwrap();
+        let config = BakeConfig {
+            theta_steps: 4,
+            ..BakeConfig::default()
+        };
+        let baked = BakedSampler::new(phong.into(), config).unwrap();
+        let back = BakedSampler::from_bytes(&baked.to_bytes()).unwrap();
+        assert_eq!(back.forward, baked.forward);
+        let mut short = BakedSampler::from_bytes(&baked.to_bytes()).unwrap();
+        short.forward.nearest[1].theta.pop();
+        assert_eq!(
+            BakedSampler::from_bytes(&short.to_bytes()).unwrap_err(),
+            BakeFileError::GridMismatch
+        );
+        let mut phi = BakedSampler::from_bytes(&baked.to_bytes()).unwrap();
+        phi.forward.nearest[0].phi = alloc::vec![true; phi.grid.cells()];
+        assert_eq!(
+            BakedSampler::from_bytes(&phi.to_bytes()).unwrap_err(),
+            BakeFileError::GridMismatch
+        );
+    }
+}

@@ -1,8 +1,9 @@
 //! The grid of incident directions a [`crate::BakedSampler`] bakes trees at (SPEC §7): θi
 //! rows to [`crate::GRID_THETA_MAX_DEG`], φi columns over the [`PhiDomain`] the model's
 //! declared symmetries leave, each wi folded into that domain; the neighbour weights of any
-//! wi (linear in θ, bilinear in (θ, φ)); and the rotations that carry a neighbour's tree onto
-//! wi's mirror direction (the isotropic ones written out).
+//! wi (linear in θ, bilinear in (θ, φ), snapped to the nearest tree along an axis in the
+//! cells where the bake measured that its neighbours agree: [`Nearest`]); and the rotations
+//! that carry a neighbour's tree onto wi's mirror direction (the isotropic ones written out).
 
 use crate::baked::{GRID_THETA_MAX_DEG, MAX_TREES};
 use crate::error::BakeError;
@@ -201,10 +202,45 @@ impl BakeGrid {
         )
     }
 
+    /// Rows of trees (θi values).
+    #[must_use]
+    pub(crate) fn rows(&self) -> usize {
+        self.thetas.len()
+    }
+
+    /// Columns of trees (φi values; 1 for an isotropic grid).
+    #[must_use]
+    pub(crate) fn columns(&self) -> usize {
+        self.phis.len()
+    }
+
+    /// Cells of the grid along φ: 1 without columns (isotropic), one per column on the
+    /// periodic circle (the last cell wraps to the first column), else one fewer than the
+    /// columns.
+    #[must_use]
+    pub(crate) fn phi_cells(&self) -> usize {
+        match self.domain {
+            PhiDomain::Rotation => 1,
+            PhiDomain::Circle => self.phis.len(),
+            _ => self.phis.len() - 1,
+        }
+    }
+
+    /// Cells of the grid, row-major: (rows − 1) × the cells along φ (1 for an isotropic
+    /// grid, one per column on the periodic circle, else one fewer than the columns). Cell
+    /// (i, j) lies between rows i, i + 1 and columns j, j + 1 (mod the columns on the
+    /// circle).
+    #[must_use]
+    pub fn cells(&self) -> usize {
+        (self.thetas.len() - 1) * self.phi_cells()
+    }
+
     /// The neighbouring trees of a folded direction `w` (unit, z > 0) and their weights
-    /// (summing to 1; linear in θ, bilinear in (θ, φ)); unused entries have weight 0.
+    /// (summing to 1; linear in θ, bilinear in (θ, φ), except along an axis that `nearest`
+    /// snaps in `w`'s cell: there the nearer tree takes the whole weight); unused entries
+    /// have weight 0. Any weights that are a function of `w` alone keep the mixture exact.
     #[inline]
-    pub(crate) fn neighbours(&self, w: DVec3) -> [(usize, f64); 4] {
+    pub(crate) fn neighbours(&self, w: DVec3, nearest: &Nearest) -> [(usize, f64); 4] {
         let theta = fast_acos(w.z);
         let nt = self.thetas.len();
         let t = (theta * self.rows_per_radian).clamp(0.0, (nt - 1) as f64);
@@ -231,6 +267,9 @@ impl BakeGrid {
                 (j, j + 1, (p - j as f64).clamp(0.0, 1.0))
             }
         };
+        let cell = i * self.phi_cells() + j0;
+        let ft = nearest.snap_theta(cell, ft);
+        let fp = nearest.snap_phi(cell, fp);
         let at = |r: usize, c: usize| r * np + c;
         [
             (at(i, j0), (1.0 - ft) * (1.0 - fp)),
@@ -239,6 +278,59 @@ impl BakeGrid {
             (at(i + 1, j1), ft * fp),
         ]
     }
+}
+
+/// The cells of a grid where a query is answered by the nearest tree along θ, or along φ,
+/// instead of by blending the two (see `baked_nearest`, which measures where that costs no
+/// variance). A query's cost is one model evaluation (rejection) or one table look-up (warp)
+/// per neighbour it blends, beyond its draw; a cell snapped along θ (an isotropic grid's
+/// only axis) has one neighbour. Empty: blend everywhere.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Nearest {
+    /// Per cell (row-major, [`BakeGrid::cells`]): whether θ snaps to the nearer row.
+    pub(crate) theta: Vec<bool>,
+    /// Per cell: whether φ snaps to the nearer column (empty for an isotropic grid).
+    pub(crate) phi: Vec<bool>,
+}
+
+impl Nearest {
+    /// The fraction `f` ∈ [0, 1] between the cell's rows, snapped to the nearer (0 below ½,
+    /// else 1) where the cell says so.
+    #[inline(always)]
+    fn snap_theta(&self, cell: usize, f: f64) -> f64 {
+        if self.theta.get(cell).copied().unwrap_or(false) {
+            snap(f)
+        } else {
+            f
+        }
+    }
+
+    /// The same along φ.
+    #[inline(always)]
+    fn snap_phi(&self, cell: usize, f: f64) -> f64 {
+        if self.phi.get(cell).copied().unwrap_or(false) {
+            snap(f)
+        } else {
+            f
+        }
+    }
+
+    /// Whether these cells fit `grid` (a file's record is checked with this): one θ flag a
+    /// cell, and one φ flag a cell for a grid with columns, none without.
+    pub(crate) fn fits(&self, grid: &BakeGrid) -> bool {
+        let phi = if grid.domain() == PhiDomain::Rotation {
+            0
+        } else {
+            grid.cells()
+        };
+        self.theta.len() == grid.cells() && self.phi.len() == phi
+    }
+}
+
+/// The nearer end of [0, 1]: 0 below ½, else 1.
+#[inline(always)]
+fn snap(f: f64) -> f64 {
+    if f < 0.5 { 0.0 } else { 1.0 }
 }
 
 /// atan2(y, x) to within 2·10⁻⁵ rad (Abramowitz & Stegun 4.4.49 on the octant's ratio),

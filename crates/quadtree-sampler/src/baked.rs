@@ -32,7 +32,7 @@
 //! lobe then smears between slices. The rotation above keeps sharp lobes sharp between
 //! slices and the mixture keeps the pdf exact.
 
-use crate::bake_grid::BakeGrid;
+use crate::bake_grid::{BakeGrid, Nearest};
 use crate::baked_views::{BakedAt, BrokenPdf};
 use crate::config::BuildConfig;
 use crate::error::{BakeError, BakedError, BuildError};
@@ -124,6 +124,26 @@ impl BakedMode {
             Self::Warp => "warp",
         }
     }
+
+    /// Its index in per-mode arrays: 0 rejection, 1 warp.
+    #[must_use]
+    pub(crate) fn index(self) -> usize {
+        match self {
+            Self::Rejection => 0,
+            Self::Warp => 1,
+        }
+    }
+}
+
+/// One grid tree of a query's mixture ([`BakedSampler::mixture_at`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MixtureTree {
+    /// The tree's θi, degrees.
+    pub theta_deg: f64,
+    /// The tree's φi, degrees (0 for an isotropic grid).
+    pub phi_deg: f64,
+    /// Its weight in the mixture.
+    pub weight: f64,
 }
 
 /// How a [`BakedSampler`] is built.
@@ -238,6 +258,9 @@ impl Brdf for Adjoint<'_> {
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Tables {
     pub(crate) slices: Vec<Slice>,
+    /// Per mode ([`BakedMode::index`]): the cells a query answers with its nearest tree
+    /// (measured by `baked_nearest` at the bake, recorded in the bake file).
+    pub(crate) nearest: [Nearest; 2],
 }
 
 /// A model's sampler at every incident direction, baked once (see the module doc): exact
@@ -411,16 +434,26 @@ impl BakedSampler {
         #[cfg(not(feature = "rayon"))]
         let slices: Vec<Result<Slice, BakeError>> = jobs.iter().map(build).collect();
         let mut slices = slices.into_iter().collect::<Result<Vec<_>, _>>()?;
-        let adjoint = (!symmetry.reciprocal).then(|| Tables {
-            slices: slices.split_off(grid.len()),
-        });
-        Ok(Self::from_parts(
-            brdf,
-            config,
-            grid,
-            Tables { slices },
-            adjoint,
-        ))
+        let tables = |slices: Vec<Slice>, adjoint: bool| {
+            let eval = |wi: Vec3, w: Vec3| {
+                if adjoint {
+                    brdf.eval(w, wi)
+                } else {
+                    brdf.eval(wi, w)
+                }
+            };
+            let nearest = crate::baked_nearest::measure(
+                &grid,
+                &slices,
+                &eval,
+                config.defensive,
+                config.build.parallel,
+            );
+            Tables { slices, nearest }
+        };
+        let adjoint = (!symmetry.reciprocal).then(|| tables(slices.split_off(grid.len()), true));
+        let forward = tables(slices, false);
+        Ok(Self::from_parts(brdf, config, grid, forward, adjoint))
     }
 
     pub(crate) fn from_parts(
@@ -526,6 +559,50 @@ impl BakedSampler {
             .slices
             .iter()
             .chain(self.adjoint.iter().flat_map(|t| t.slices.iter()))
+    }
+
+    /// The grid trees a query answers with at `given` for a role, in the current mode: each
+    /// tree's (θi, φi) in degrees and its weight in the mixture (summing to 1; the defensive
+    /// share aside). One tree in a cell the bake found its neighbours agree in (see
+    /// [`BakedSampler::nearest_cells`]), else the two (isotropic) or up to four trees around.
+    pub fn mixture_at(&self, role: Role, given: Vec3) -> Result<Vec<MixtureTree>, BakedError> {
+        let given = brdf_core::geometry::unit_direction_above(given)?;
+        let (tables, _) = self.tables_for(role);
+        let mut comps = [crate::baked_mixture::Component::NONE; 4];
+        let n = self.components(tables, given, &mut comps);
+        Ok(comps[..n]
+            .iter()
+            .map(|c| {
+                let (theta_deg, phi_deg) = self.grid.angles_deg(c.slice);
+                MixtureTree {
+                    theta_deg,
+                    phi_deg,
+                    weight: c.weight,
+                }
+            })
+            .collect())
+    }
+
+    /// How many of the grid's cells a query in `mode` answers with one tree along θ (every
+    /// cell of an isotropic grid that does has one tree), and how many cells there are, over
+    /// the forward trees. Measured at the bake: a cell snaps where its corner trees, rotated
+    /// onto each other's mirror directions, sample each other's densities within
+    /// [`crate::NEAREST_REJECTION_EXCESS`] or [`crate::NEAREST_WARP_EXCESS`] of the second
+    /// moment of the weight.
+    #[must_use]
+    pub fn nearest_cells(&self, mode: BakedMode) -> (usize, usize) {
+        let n = &self.forward.nearest[mode.index()];
+        (n.theta.iter().filter(|&&b| b).count(), self.grid.cells())
+    }
+
+    /// Test-only: blends the neighbours of every cell again (linear weights everywhere), as
+    /// before nearest-tree cells were measured; still an exact mixture. For negative
+    /// controls that need two neighbours at a wi. Not for production.
+    #[doc(hidden)]
+    pub fn blend_everywhere_for_testing(&mut self) {
+        for t in core::iter::once(&mut self.forward).chain(self.adjoint.as_mut()) {
+            t.nearest = Default::default();
+        }
     }
 
     /// How many rejection trials met f > M (should stay 0).

@@ -3,7 +3,10 @@
 //!
 //! `wi` is first folded into the grid's domain by its symmetries (a rotation about z, or
 //! reflections in x and y: both preserve solid angle and f_r). Its neighbouring grid trees k
-//! get interpolation weights w_k (linear in θi, bilinear in (θi, φi)). A sharp lobe moves
+//! get interpolation weights w_k (linear in θi, bilinear in (θi, φi); in a cell where the bake
+//! measured that neighbouring trees sample each other's densities as well as their own, the
+//! nearer tree along that axis takes the whole weight: one density fewer to compute, see
+//! `baked_nearest`). A sharp lobe moves
 //! with `wi` faster than any affordable grid follows, so each neighbour is not used as is:
 //! its directions are **rotated by the rotation R_k that carries the grid direction's mirror
 //! r(wi_k) onto r(wi)** — the lobe of tree k then sits where the lobe of `wi` is. A rotation
@@ -148,7 +151,7 @@ impl BakedSampler {
             let mc = DVec3::new(-gc.x, -gc.y, gc.z).normalize();
             (gc, (1.0, 0.0), signs, mc)
         };
-        for (slice, w) in self.grid.neighbours(gc) {
+        for (slice, w) in self.grid.neighbours(gc, &tables.nearest[self.mode.index()]) {
             if w <= 0.0 || !tables.slices[slice].live {
                 continue;
             }

@@ -67,6 +67,7 @@ mod bake_file;
 mod bake_grid;
 mod baked;
 mod baked_mixture;
+mod baked_nearest;
 mod baked_views;
 mod bound;
 pub mod chart;
@@ -91,8 +92,10 @@ pub use bake_file::{BakeIoError, temporary_beside, write_atomically};
 pub use bake_grid::{BakeGrid, PhiDomain};
 pub use baked::{
     BakeConfig, BakedMode, BakedSampler, DEFAULT_BAKE_NODE_BUDGET, DEFAULT_DEFENSIVE,
-    DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, GRID_THETA_MAX_DEG, MAX_BAKE_BYTES, MAX_TREES, Role,
+    DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, GRID_THETA_MAX_DEG, MAX_BAKE_BYTES, MAX_TREES,
+    MixtureTree, Role,
 };
+pub use baked_nearest::{NEAREST_REJECTION_EXCESS, NEAREST_WARP_EXCESS};
 pub use baked_views::{BakedAt, BrokenAt, BrokenPdf, WorldBsdf};
 pub use brdf_core;
 pub use config::{BuildConfig, EVALUATIONS_PER_NODE, IntegrationRule};

@@ -4,7 +4,7 @@
 use crate::CliError;
 use crate::sample::MapArg;
 use brdf_sampling::quadtree_sampler::{
-    BakeConfig, BakedSampler, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS,
+    BakeConfig, BakedMode, BakedSampler, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS,
 };
 use brdf_sampling::{Brdf, DiskMap};
 use serde_json::json;
@@ -86,6 +86,13 @@ pub(crate) fn run(
         "map": config.build.map.name(),
         "defensive": config.defensive,
         "max_expected_trials": baked.expected_trials().into_iter().fold(0.0, f64::max),
+        // Grid cells a query answers with its nearest tree along θ (one evaluation or look-up
+        // fewer a sample and a pdf), per mode, of `cells`.
+        "nearest_cells": {
+            "rejection": baked.nearest_cells(BakedMode::Rejection).0,
+            "warp": baked.nearest_cells(BakedMode::Warp).0,
+            "cells": grid.cells(),
+        },
     });
     serde_json::to_writer(&mut stdout, &summary).map_err(std::io::Error::from)?;
     writeln!(stdout)?;
