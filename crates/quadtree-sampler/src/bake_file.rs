@@ -7,7 +7,7 @@
 //! | 8 | magic `BRDFBAKE` |
 //! | 4 | format version ([`BAKE_FORMAT_VERSION`]) |
 //! | 8 | payload length n |
-//! | n | payload: the model name, its parameters as `name=value`, the bake configuration, the grid's φ domain, per tree its wi, volume and both layouts' nodes, and per transport direction and mode the grid cells answered by their nearest tree, encoded with `postcard` (LEB128 integers, little-endian floats) |
+//! | n | payload: the model name, its parameters as `name=value`, the bake configuration, the grid's φ domain, per tree its wi, volume and both layouts' nodes, and per transport direction the grid cells a rejection-mode query answers with its nearest tree, encoded with `postcard` (LEB128 integers, little-endian floats) |
 //! | 4 | CRC-32 (IEEE) of everything before it |
 //!
 //! Reading checks, in order: the magic, the version, the length against the file's size
@@ -40,8 +40,8 @@ pub const BAKE_MAGIC: [u8; 8] = *b"BRDFBAKE";
 /// ([`crate::proposal::Shape`], in bits 3–26 of a leaf's link word). Version 5: the root
 /// and its children may use the polar chart on concentric trees too, and a square or polar
 /// leaf may carry a fine height shape (its five further levels in the leaf's third data
-/// word). Version 6: per transport direction and mode, the grid cells a query answers with
-/// its nearest tree (measured at the bake). A file of any other version is a typed error
+/// word). Version 6: per transport direction, the grid cells a rejection-mode query answers
+/// with its nearest tree (measured at the bake). A file of any other version is a typed error
 /// (SPEC §7): bake it again.
 pub const BAKE_FORMAT_VERSION: u32 = 6;
 
@@ -179,18 +179,18 @@ struct SliceRecord {
     warp: Vec<(u32, f32)>,
 }
 
-/// One mode's [`Nearest`] cells.
+/// The [`Nearest`] cells of one transport direction.
 #[derive(Serialize, Deserialize)]
 struct NearestRecord {
     theta: Vec<bool>,
     phi: Vec<bool>,
 }
 
-/// The trees of one transport direction and their nearest-tree cells (rejection, warp).
+/// The trees of one transport direction and their (rejection mode's) nearest-tree cells.
 #[derive(Serialize, Deserialize)]
 struct TablesRecord {
     slices: Vec<SliceRecord>,
-    nearest: [NearestRecord; 2],
+    nearest: NearestRecord,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -302,10 +302,10 @@ fn slice_record(s: &Slice) -> SliceRecord {
 fn tables_record(t: &Tables) -> TablesRecord {
     TablesRecord {
         slices: t.slices.iter().map(slice_record).collect(),
-        nearest: t.nearest.each_ref().map(|n| NearestRecord {
-            theta: n.theta.clone(),
-            phi: n.phi.clone(),
-        }),
+        nearest: NearestRecord {
+            theta: t.nearest.theta.clone(),
+            phi: t.nearest.phi.clone(),
+        },
     }
 }
 
@@ -316,11 +316,11 @@ fn tables_from(
     first_index: usize,
 ) -> Result<Tables, BakeFileError> {
     let TablesRecord { slices, nearest } = record;
-    let nearest = nearest.map(|n| Nearest {
-        theta: n.theta,
-        phi: n.phi,
-    });
-    if nearest.iter().any(|n| !n.fits(grid)) {
+    let nearest = Nearest {
+        theta: nearest.theta,
+        phi: nearest.phi,
+    };
+    if !nearest.fits(grid) {
         return Err(BakeFileError::GridMismatch);
     }
     Ok(Tables {
@@ -619,13 +619,13 @@ mod tests {
         let back = BakedSampler::from_bytes(&baked.to_bytes()).unwrap();
         assert_eq!(back.forward, baked.forward);
         let mut short = BakedSampler::from_bytes(&baked.to_bytes()).unwrap();
-        short.forward.nearest[1].theta.pop();
+        short.forward.nearest.theta.pop();
         assert_eq!(
             BakedSampler::from_bytes(&short.to_bytes()).unwrap_err(),
             BakeFileError::GridMismatch
         );
         let mut phi = BakedSampler::from_bytes(&baked.to_bytes()).unwrap();
-        phi.forward.nearest[0].phi = alloc::vec![true; phi.grid.cells()];
+        phi.forward.nearest.phi = alloc::vec![true; phi.grid.cells()];
         assert_eq!(
             BakedSampler::from_bytes(&phi.to_bytes()).unwrap_err(),
             BakeFileError::GridMismatch

@@ -124,15 +124,6 @@ impl BakedMode {
             Self::Warp => "warp",
         }
     }
-
-    /// Its index in per-mode arrays: 0 rejection, 1 warp.
-    #[must_use]
-    pub(crate) fn index(self) -> usize {
-        match self {
-            Self::Rejection => 0,
-            Self::Warp => 1,
-        }
-    }
 }
 
 /// One grid tree of a query's mixture ([`BakedSampler::mixture_at`]).
@@ -258,9 +249,9 @@ impl Brdf for Adjoint<'_> {
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Tables {
     pub(crate) slices: Vec<Slice>,
-    /// Per mode ([`BakedMode::index`]): the cells a query answers with its nearest tree
-    /// (measured by `baked_nearest` at the bake, recorded in the bake file).
-    pub(crate) nearest: [Nearest; 2],
+    /// The cells a rejection-mode query answers with its nearest tree (measured by
+    /// `baked_nearest` at the bake, recorded in the bake file; warp mode blends everywhere).
+    pub(crate) nearest: Nearest,
 }
 
 /// A model's sampler at every incident direction, baked once (see the module doc): exact
@@ -585,14 +576,17 @@ impl BakedSampler {
 
     /// How many of the grid's cells a query in `mode` answers with one tree along θ (every
     /// cell of an isotropic grid that does has one tree), and how many cells there are, over
-    /// the forward trees. Measured at the bake: a cell snaps where its corner trees, rotated
-    /// onto each other's mirror directions, sample each other's densities within
-    /// [`crate::NEAREST_REJECTION_EXCESS`] or [`crate::NEAREST_WARP_EXCESS`] of the second
-    /// moment of the weight.
+    /// the forward trees. Measured at the bake, rejection mode only: a cell snaps where its
+    /// corner trees, rotated onto each other's mirror directions, sample each other's exact
+    /// densities within [`crate::NEAREST_REJECTION_EXCESS`] (χ²) and
+    /// [`crate::NEAREST_MAX_RATIO`] (the largest ratio of the densities). Warp mode: none.
     #[must_use]
     pub fn nearest_cells(&self, mode: BakedMode) -> (usize, usize) {
-        let n = &self.forward.nearest[mode.index()];
-        (n.theta.iter().filter(|&&b| b).count(), self.grid.cells())
+        let snapped = match mode {
+            BakedMode::Rejection => self.forward.nearest.theta.iter().filter(|&&b| b).count(),
+            BakedMode::Warp => 0,
+        };
+        (snapped, self.grid.cells())
     }
 
     /// Test-only: blends the neighbours of every cell again (linear weights everywhere), as

@@ -3,10 +3,10 @@
 //!
 //! `wi` is first folded into the grid's domain by its symmetries (a rotation about z, or
 //! reflections in x and y: both preserve solid angle and f_r). Its neighbouring grid trees k
-//! get interpolation weights w_k (linear in θi, bilinear in (θi, φi); in a cell where the bake
-//! measured that neighbouring trees sample each other's densities as well as their own, the
-//! nearer tree along that axis takes the whole weight: one density fewer to compute, see
-//! `baked_nearest`). A sharp lobe moves
+//! get interpolation weights w_k (linear in θi, bilinear in (θi, φi); in rejection mode, in a
+//! cell where the bake measured that neighbouring trees sample each other's densities as
+//! well as their own, the nearer tree along that axis takes the whole weight: one model
+//! evaluation fewer a sample and a pdf, see `baked_nearest`). A sharp lobe moves
 //! with `wi` faster than any affordable grid follows, so each neighbour is not used as is:
 //! its directions are **rotated by the rotation R_k that carries the grid direction's mirror
 //! r(wi_k) onto r(wi)** — the lobe of tree k then sits where the lobe of `wi` is. A rotation
@@ -30,7 +30,9 @@
 //!   without evaluating the model (the neighbour that drew a sample gives its leaf's density
 //!   without a look-up while the sample's direction maps back into that leaf).
 
-use crate::bake_grid::{PhiDomain, isotropic_to_local, rotation_arc, rotation_between_mirrors_xz};
+use crate::bake_grid::{
+    Nearest, PhiDomain, isotropic_to_local, rotation_arc, rotation_between_mirrors_xz,
+};
 use crate::baked::{BakedMode, BakedSampler, Role, Tables};
 use crate::sampler::{DensityHints, Ridge, Sample, rejection_in_leaf};
 use crate::warp_table::WarpLeaf;
@@ -74,6 +76,12 @@ fn near_unit(v: DVec3) -> DVec3 {
         DVec3::ZERO
     }
 }
+
+/// No nearest-tree cells: every neighbour blends (warp mode).
+static BLEND: Nearest = Nearest {
+    theta: alloc::vec::Vec::new(),
+    phi: alloc::vec::Vec::new(),
+};
 
 /// One neighbour of a query: its tree, weight, and the map from its tree's frame to the
 /// caller's local frame (unfold ∘ rotation onto the query's mirror direction).
@@ -151,7 +159,11 @@ impl BakedSampler {
             let mc = DVec3::new(-gc.x, -gc.y, gc.z).normalize();
             (gc, (1.0, 0.0), signs, mc)
         };
-        for (slice, w) in self.grid.neighbours(gc, &tables.nearest[self.mode.index()]) {
+        let nearest = match self.mode {
+            BakedMode::Rejection => &tables.nearest,
+            BakedMode::Warp => &BLEND,
+        };
+        for (slice, w) in self.grid.neighbours(gc, nearest) {
             if w <= 0.0 || !tables.slices[slice].live {
                 continue;
             }

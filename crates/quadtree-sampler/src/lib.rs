@@ -95,7 +95,7 @@ pub use baked::{
     DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, GRID_THETA_MAX_DEG, MAX_BAKE_BYTES, MAX_TREES,
     MixtureTree, Role,
 };
-pub use baked_nearest::{NEAREST_REJECTION_EXCESS, NEAREST_WARP_EXCESS};
+pub use baked_nearest::{NEAREST_MAX_RATIO, NEAREST_REJECTION_EXCESS};
 pub use baked_views::{BakedAt, BrokenAt, BrokenPdf, WorldBsdf};
 pub use brdf_core;
 pub use config::{BuildConfig, EVALUATIONS_PER_NODE, IntegrationRule};

@@ -229,8 +229,8 @@ fn chi2_everywhere(full: bool) {
 #[test]
 fn a_pdf_that_drops_a_neighbour_is_rejected() {
     let b = model("phong", &["n=200", "kd=0.1"]);
-    // Linear weights everywhere (phong's rows agree, so the bake answers with the nearest
-    // tree alone at most wi, where there is no neighbour to drop).
+    // Linear weights everywhere: the control needs two neighbours at its wi, whichever cells
+    // the bake found a nearest tree enough for (there, there is no neighbour to drop).
     let mut baked = BakedSampler::new(b.clone(), small()).unwrap();
     baked.blend_everywhere_for_testing();
     let baked = Arc::new(baked);

@@ -86,11 +86,10 @@ pub(crate) fn run(
         "map": config.build.map.name(),
         "defensive": config.defensive,
         "max_expected_trials": baked.expected_trials().into_iter().fold(0.0, f64::max),
-        // Grid cells a query answers with its nearest tree along θ (one evaluation or look-up
-        // fewer a sample and a pdf), per mode, of `cells`.
+        // Grid cells a rejection-mode query answers with its nearest tree along θ (one model
+        // evaluation fewer a sample and a pdf), of `cells` (warp mode blends everywhere).
         "nearest_cells": {
             "rejection": baked.nearest_cells(BakedMode::Rejection).0,
-            "warp": baked.nearest_cells(BakedMode::Warp).0,
             "cells": grid.cells(),
         },
     });
