@@ -41,9 +41,15 @@ pub const BAKE_MAGIC: [u8; 8] = *b"BRDFBAKE";
 /// and its children may use the polar chart on concentric trees too, and a square or polar
 /// leaf may carry a fine height shape (its five further levels in the leaf's third data
 /// word). Version 6: per transport direction, the grid cells a rejection-mode query answers
-/// with its nearest tree (measured at the bake). A file of any other version is a typed error
+/// with its nearest tree (measured at the bake). Files of version 5 are still read
+/// ([`OLDEST_READ_VERSION`]): they hold no such cells, and their samplers blend every cell,
+/// as they did when they were written. A file of any other version is a typed error
 /// (SPEC §7): bake it again.
 pub const BAKE_FORMAT_VERSION: u32 = 6;
+
+/// The oldest format version read: version 5, whose records are version 6's without the
+/// nearest-tree cells.
+pub const OLDEST_READ_VERSION: u32 = 5;
 
 const HEADER: usize = 8 + 4 + 8;
 const TRAILER: usize = 4;
@@ -201,6 +207,39 @@ struct Record {
     domain: u8,
     forward: TablesRecord,
     adjoint: Option<TablesRecord>,
+}
+
+/// A version 5 file's record: the trees alone.
+#[derive(Serialize, Deserialize)]
+struct RecordV5 {
+    model: String,
+    params: Vec<String>,
+    config: ConfigRecord,
+    domain: u8,
+    forward: Vec<SliceRecord>,
+    adjoint: Option<Vec<SliceRecord>>,
+}
+
+impl RecordV5 {
+    /// The version 6 record it stands for: every cell blends (no nearest-tree cells, which
+    /// [`Nearest::fits`] accepts as none measured).
+    fn upgrade(self) -> Record {
+        let tables = |slices| TablesRecord {
+            slices,
+            nearest: NearestRecord {
+                theta: Vec::new(),
+                phi: Vec::new(),
+            },
+        };
+        Record {
+            model: self.model,
+            params: self.params,
+            config: self.config,
+            domain: self.domain,
+            forward: tables(self.forward),
+            adjoint: self.adjoint.map(tables),
+        }
+    }
 }
 
 fn map_code(m: DiskMap) -> u8 {
@@ -366,6 +405,18 @@ fn slices_from(
     Ok(slices)
 }
 
+/// A file's bytes around an encoded `payload`: magic, `version`, length, and the CRC-32.
+fn frame(version: u32, payload: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(HEADER + payload.len() + TRAILER);
+    out.extend_from_slice(&BAKE_MAGIC);
+    out.extend_from_slice(&version.to_le_bytes());
+    out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+    out.extend_from_slice(payload);
+    let crc = crc32fast::hash(&out);
+    out.extend_from_slice(&crc.to_le_bytes());
+    out
+}
+
 /// Little-endian word of `n` bytes at `at` (a truncation error where `bytes` ends first).
 fn word(bytes: &[u8], at: usize, n: usize) -> Result<u64, BakeFileError> {
     let b = bytes.get(at..at + n).ok_or(BakeFileError::Truncated {
@@ -385,7 +436,7 @@ fn declared_length(bytes: &[u8]) -> Result<u64, BakeFileError> {
         return Err(BakeFileError::NotABakeFile);
     }
     let version = word(bytes, 8, 4)? as u32;
-    if version != BAKE_FORMAT_VERSION {
+    if !(OLDEST_READ_VERSION..=BAKE_FORMAT_VERSION).contains(&version) {
         return Err(BakeFileError::Version {
             found: version,
             supported: BAKE_FORMAT_VERSION,
@@ -422,15 +473,10 @@ impl BakedSampler {
             adjoint: adjoint.map(tables_record),
         };
         // Encoding into a Vec cannot fail for these plain types.
-        let payload = postcard::to_allocvec(&record).unwrap_or_default();
-        let mut out = Vec::with_capacity(HEADER + payload.len() + TRAILER);
-        out.extend_from_slice(&BAKE_MAGIC);
-        out.extend_from_slice(&BAKE_FORMAT_VERSION.to_le_bytes());
-        out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
-        out.extend_from_slice(&payload);
-        let crc = crc32fast::hash(&out);
-        out.extend_from_slice(&crc.to_le_bytes());
-        out
+        frame(
+            BAKE_FORMAT_VERSION,
+            &postcard::to_allocvec(&record).unwrap_or_default(),
+        )
     }
 
     /// Reads a bake file's bytes, rebuilding the model from the registry (see the module
@@ -451,8 +497,14 @@ impl BakedSampler {
         if stored != computed {
             return Err(BakeFileError::Checksum { stored, computed });
         }
-        let record: Record =
-            postcard::from_bytes(&bytes[HEADER..body]).map_err(|_| BakeFileError::Decode)?;
+        let payload = &bytes[HEADER..body];
+        let record: Record = if word(bytes, 8, 4)? as u32 == OLDEST_READ_VERSION {
+            postcard::from_bytes::<RecordV5>(payload)
+                .map_err(|_| BakeFileError::Decode)?
+                .upgrade()
+        } else {
+            postcard::from_bytes(payload).map_err(|_| BakeFileError::Decode)?
+        };
         let info = registry::find(&record.model).map_err(BakeFileError::Model)?;
         let params = info
             .parse_params(record.params.iter().map(String::as_str))
@@ -604,6 +656,52 @@ pub use files::{BakeIoError, temporary_beside, write_atomically};
 mod tests {
     use super::*;
     use crate::BakeConfig;
+
+    /// A version 5 file (the trees without nearest-tree cells, as this library wrote them
+    /// before) still reads: the same trees, and a sampler that blends every cell as it did,
+    /// bit for bit the pdf of this bake with its cells cleared.
+    #[test]
+    fn a_version_5_file_reads_and_blends_everywhere() {
+        let phong = registry::create("phong", ["n=1000", "kd=0"]).unwrap();
+        let config = BakeConfig {
+            theta_steps: 8,
+            ..BakeConfig::default()
+        };
+        let baked = BakedSampler::new(phong.into(), config).unwrap();
+        let (forward, _) = baked.tables();
+        let record = RecordV5 {
+            model: baked.brdf().name().to_string(),
+            params: baked
+                .brdf()
+                .params()
+                .iter()
+                .map(|(spec, v)| alloc::format!("{}={v}", spec.name))
+                .collect(),
+            config: ConfigRecord::of(baked.config()),
+            domain: domain_code(baked.grid().domain()),
+            forward: forward.slices.iter().map(slice_record).collect(),
+            adjoint: None,
+        };
+        let v5 = frame(5, &postcard::to_allocvec(&record).unwrap());
+        let old = BakedSampler::from_bytes(&v5).unwrap();
+        assert_eq!(old.forward.slices, baked.forward.slices);
+        assert!(old.forward.nearest.theta.is_empty());
+        assert!(baked.nearest_cells(crate::BakedMode::Rejection).0 > 0);
+        let mut blended = BakedSampler::from_bytes(&baked.to_bytes()).unwrap();
+        blended.blend_everywhere_for_testing();
+        let wi = glam::Vec3::new(0.45, 0.1, 0.8).normalize();
+        let role = crate::Role::Importance;
+        assert_eq!(old.mixture_at(role, wi), blended.mixture_at(role, wi));
+        assert_eq!(baked.mixture_at(role, wi).unwrap().len(), 1);
+        for k in 0..200 {
+            let a = f32::from(k as u8) * 0.031;
+            let wo = glam::Vec3::new(-0.4 + 0.1 * a.cos(), -0.1 + 0.1 * a.sin(), 0.9).normalize();
+            assert_eq!(
+                old.pdf(wi, wo).unwrap().to_bits(),
+                blended.pdf(wi, wo).unwrap().to_bits()
+            );
+        }
+    }
 
     /// A file whose nearest-tree cells do not fit its grid (one flag short, or φ flags on an
     /// isotropic grid) is a typed error, not an index out of range at the first query; the

@@ -316,14 +316,16 @@ impl Nearest {
     }
 
     /// Whether these cells fit `grid` (a file's record is checked with this): one θ flag a
-    /// cell, and one φ flag a cell for a grid with columns, none without.
+    /// cell, and one φ flag a cell for a grid with columns, none without; or none at all
+    /// (nothing measured: every cell blends, as a version 5 bake file's sampler does).
     pub(crate) fn fits(&self, grid: &BakeGrid) -> bool {
         let phi = if grid.domain() == PhiDomain::Rotation {
             0
         } else {
             grid.cells()
         };
-        self.theta.len() == grid.cells() && self.phi.len() == phi
+        (self.theta.is_empty() && self.phi.is_empty())
+            || (self.theta.len() == grid.cells() && self.phi.len() == phi)
     }
 }
 

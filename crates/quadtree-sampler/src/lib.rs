@@ -86,7 +86,9 @@ mod tree;
 mod warp;
 mod warp_table;
 
-pub use bake_file::{BAKE_FORMAT_VERSION, BAKE_MAGIC, BakeFileError, MAX_BAKE_FILE_BYTES};
+pub use bake_file::{
+    BAKE_FORMAT_VERSION, BAKE_MAGIC, BakeFileError, MAX_BAKE_FILE_BYTES, OLDEST_READ_VERSION,
+};
 #[cfg(feature = "std")]
 pub use bake_file::{BakeIoError, temporary_beside, write_atomically};
 pub use bake_grid::{BakeGrid, PhiDomain};
