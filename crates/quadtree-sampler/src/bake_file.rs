@@ -405,6 +405,14 @@ fn slices_from(
     Ok(slices)
 }
 
+/// A model's parameters as the file records them, `name=value`.
+fn param_strings(brdf: &dyn Brdf) -> Vec<String> {
+    brdf.params()
+        .iter()
+        .map(|(spec, v)| alloc::format!("{}={v}", spec.name))
+        .collect()
+}
+
 /// A file's bytes around an encoded `payload`: magic, `version`, length, and the CRC-32.
 fn frame(version: u32, payload: &[u8]) -> Vec<u8> {
     let mut out = Vec::with_capacity(HEADER + payload.len() + TRAILER);
@@ -461,12 +469,7 @@ impl BakedSampler {
         let (forward, adjoint) = self.tables();
         let record = Record {
             model: self.brdf().name().to_string(),
-            params: self
-                .brdf()
-                .params()
-                .iter()
-                .map(|(spec, v)| alloc::format!("{}={v}", spec.name))
-                .collect(),
+            params: param_strings(&**self.brdf()),
             config: ConfigRecord::of(self.config()),
             domain: domain_code(self.grid().domain()),
             forward: tables_record(forward),
@@ -671,12 +674,7 @@ mod tests {
         let (forward, _) = baked.tables();
         let record = RecordV5 {
             model: baked.brdf().name().to_string(),
-            params: baked
-                .brdf()
-                .params()
-                .iter()
-                .map(|(spec, v)| alloc::format!("{}={v}", spec.name))
-                .collect(),
+            params: param_strings(&**baked.brdf()),
             config: ConfigRecord::of(baked.config()),
             domain: domain_code(baked.grid().domain()),
             forward: forward.slices.iter().map(slice_record).collect(),
