@@ -450,6 +450,25 @@ impl StatsPanel {
                 );
                 row(ui, "lost", s.lost.to_string());
                 row(ui, "bound violations", s.bound_violations.to_string());
+                if !s.mixture.is_empty() {
+                    // The baked sampler's grid trees at wi: one where the bake found that its
+                    // neighbours agree, else the blend.
+                    let trees: Vec<String> = s
+                        .mixture
+                        .iter()
+                        .map(|t| {
+                            if t.phi_deg == 0.0 {
+                                format!("θ {:.1}° × {:.2}", t.theta_deg, t.weight)
+                            } else {
+                                format!(
+                                    "θ {:.1}° φ {:.1}° × {:.2}",
+                                    t.theta_deg, t.phi_deg, t.weight
+                                )
+                            }
+                        })
+                        .collect();
+                    row(ui, "baked trees", trees.join(", "));
+                }
             }
         });
     }

@@ -14,7 +14,7 @@ use brdf_validate::{CellGrid, Validation};
 use glam::{Vec2, Vec3};
 use quadtree_sampler::{
     AnySampler, BakeConfig, BakedSampler, BuildConfig, DEFAULT_BAKE_NODE_BUDGET, DirectionSampler,
-    QuadtreeSampler, SamplerMode, TreeStats,
+    MixtureTree, QuadtreeSampler, Role, SamplerMode, TreeStats,
 };
 use rand_core::SeedableRng;
 use std::sync::Arc;
@@ -116,6 +116,9 @@ pub struct SampleState {
     pub seconds: f64,
     /// Times f_r exceeded a leaf's bound during sampling (the tree's counter).
     pub bound_violations: u64,
+    /// The baked sampler's grid trees answering at wi and their weights (empty for the
+    /// other samplers): one tree where the bake found its neighbours agree.
+    pub mixture: Vec<MixtureTree>,
 }
 
 /// What the worker reports. Every variant carries the request's generation.
@@ -345,6 +348,10 @@ pub fn process(req: &Request, live: &dyn Fn() -> bool, send: &dyn Fn(Update)) {
         SamplerKind::Uniform => Some(SamplerMode::Uniform),
         SamplerKind::Analytic => Some(SamplerMode::Analytic),
     };
+    let mixture = baked
+        .as_ref()
+        .and_then(|b| b.mixture_at(Role::Importance, req.wi).ok())
+        .unwrap_or_default();
     let other = match (baked, mode) {
         (Some(b), _) => AnySampler::baked(b, req.wi).map(Some),
         (None, Some(mode)) => AnySampler::new(brdf, req.wi, mode, req.config).map(Some),
@@ -380,6 +387,7 @@ pub fn process(req: &Request, live: &dyn Fn() -> bool, send: &dyn Fn(Update)) {
     let mut state = SampleState {
         target: req.samples,
         counts: vec![0; req.grid.len()],
+        mixture,
         ..SampleState::default()
     };
     let t0 = Instant::now();
