@@ -280,11 +280,11 @@ impl BakeGrid {
     }
 }
 
-/// The cells of a grid where a query is answered by the nearest tree along θ, or along φ,
-/// instead of by blending the two (see `baked_nearest`, which measures where that costs no
-/// variance). A query's cost is one model evaluation (rejection) or one table look-up (warp)
-/// per neighbour it blends, beyond its draw; a cell snapped along θ (an isotropic grid's
-/// only axis) has one neighbour. Empty: blend everywhere.
+/// The cells of a grid where a rejection-mode query is answered by the nearest tree along θ,
+/// or along φ, instead of by blending the two (see `baked_nearest`, which measures where
+/// that costs no variance; warp mode blends everywhere). A rejection-mode query costs one
+/// model evaluation per neighbour it blends, beyond its draw; a cell snapped along θ (an
+/// isotropic grid's only axis) has one neighbour. Empty: blend everywhere.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub(crate) struct Nearest {
     /// Per cell (row-major, [`BakeGrid::cells`]): whether θ snaps to the nearer row.
