@@ -57,11 +57,11 @@ impl Hints {
         h.peaks.truncate(MAX_PEAKS);
         h.ridges.extend(ridges.iter().filter_map(|r| {
             // Scaled by its largest component first, so that no length overflows or
-            // underflows.
+            // underflows. (`max_element` passes over a NaN component: checked apart.)
             let s = r.normal.abs().max_element();
             let (n, c) = (r.normal / s, r.offset / s);
             let l = n.length();
-            (s > 0.0 && s.is_finite() && c.is_finite()).then(|| Ridge {
+            (r.normal.is_finite() && s > 0.0 && c.is_finite()).then(|| Ridge {
                 normal: n / l,
                 offset: c / l,
             })
@@ -451,6 +451,7 @@ mod tests {
                 r(DVec3::Y, 5.0),
                 r(DVec3::new(1e300, 0.0, 0.0), 5e299),
                 r(DVec3::new(0.0, 0.0, 1e-310), 0.0),
+                r(DVec3::new(f64::NAN, 0.0, 1.0), 0.2),
             ],
         );
         assert_eq!(h.peaks, vec![DVec3::Z]);
