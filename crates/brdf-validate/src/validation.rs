@@ -64,7 +64,8 @@ pub struct Validation {
     grid: CellGrid,
     /// The absolute tolerance the masses were integrated to.
     tol: f64,
-    /// Where every cell's integration cuts its ranges (the model's peak hints for wi).
+    /// Where every cell's integration cuts its ranges: the model's peaks for wi and their
+    /// axis planes (or a caller's peaks and ridge planes, [`Validation::of_fcos_with`]).
     hints: Hints,
     /// ∫ Y(f_r) dA per cell (the seed's I_i, unnormalised).
     mass: Vec<f64>,

@@ -14,8 +14,9 @@
 //! (truncated or trailing bytes), the checksum (a flipped bit anywhere), the payload's
 //! decoding, the model (registered, parameters valid), the configuration (in range, and the
 //! grid it implies is the one recorded: the model's declared symmetries have not changed),
-//! every tree's structure, and that the nearest-tree cells fit the grid. Each failure is its own [`BakeFileError`]; nothing panics,
-//! and no length in the file is trusted before the checksum has passed.
+//! every tree's structure, and that the nearest-tree cells fit the grid. Each failure is its
+//! own [`BakeFileError`]; nothing panics, and no length in the file is trusted before the
+//! checksum has passed.
 
 use crate::bake_grid::{BakeGrid, Nearest, PhiDomain};
 use crate::baked::{BakeConfig, BakedSampler, Slice, Tables};
