@@ -234,6 +234,12 @@ pub fn normalize_f64(v: DVec3) -> DVec3 {
 /// cos^n α of the angle between two f64 unit vectors, computed without cancellation:
 /// 1 − cos α = |a − b|²/2, then exp(n·ln(1 − d)). Clamped at 0 (cos α ≤ 0 gives 0, except
 /// n = 0 gives 1: pow(0, 0) = 1).
+///
+/// `ln`, not `ln_1p(−d)`: rounding 1 − d errs by at most 2⁻⁵³ relative, so ln(1 − d) is off
+/// by at most 1.2·10⁻¹⁶ absolute and the result by n·1.2·10⁻¹⁶ relative (10⁻¹¹ at
+/// n = 10⁵): the exponent's absolute error is what counts, and `ln_1p`'s relative accuracy
+/// for tiny d buys nothing here. The backend's `ln` is the faster of the two (a Phong
+/// evaluation, which a rejection trial waits on, went from 22 to 19.4 ns of latency).
 #[inline]
 #[must_use]
 pub(crate) fn cos_power(a: DVec3, b: DVec3, n: f64) -> f64 {
@@ -248,7 +254,7 @@ pub(crate) fn cos_power(a: DVec3, b: DVec3, n: f64) -> f64 {
     if d >= 1.0 || n * (d + 0.5 * d * d) >= 746.0 {
         return 0.0;
     }
-    m::exp(n * m::ln_1p(-d))
+    m::exp(n * m::ln(1.0 - d))
 }
 
 #[cfg(test)]
@@ -348,6 +354,19 @@ mod tests {
         let b = DVec3::new(m::sin(t), 0.0, m::cos(t));
         let exact = m::pow(m::cos(t), 1e5);
         assert!((cos_power(a, b, 1e5) - exact).abs() < 1e-9 * exact);
+        // Near the peak, where 1 − d rounds: relative error within n·10⁻¹⁵ (the rounding
+        // of cos t in the reference alone is n·1.1·10⁻¹⁶).
+        for t in [1e-7, 1e-5, 3e-4, 1e-2, 0.1] {
+            let b = DVec3::new(m::sin(t), 0.0, m::cos(t));
+            for n in [1.0, 10.0, 1e3, 1e5] {
+                let exact = m::pow(m::cos(t), n);
+                let got = cos_power(a, b, n);
+                assert!(
+                    (got - exact).abs() <= (1e-15 * n + 1e-15) * exact,
+                    "t {t} n {n}: {got:e} vs {exact:e}"
+                );
+            }
+        }
         assert_eq!(cos_power(a, -a, 0.0), 1.0);
         assert_eq!(cos_power(a, DVec3::X, 3.0), 0.0);
     }
@@ -366,7 +385,7 @@ mod tests {
                 let plain = if d >= 1.0 {
                     0.0
                 } else {
-                    m::exp(n * m::ln_1p(-d))
+                    m::exp(n * m::ln(1.0 - d))
                 };
                 let got = cos_power(a, b, n);
                 assert_eq!(
