@@ -4,7 +4,7 @@ use super::{
 use crate::Symmetry;
 use crate::brdf::{Brdf, BrdfSample};
 use crate::error::ParamError;
-use crate::geometry::{cos_power, upper_pair};
+use crate::geometry::{cos_power, cos_power_z, upper_pair};
 use crate::math as m;
 use crate::param::{ParamSet, ParamSpec, ParamValue};
 use crate::warp::sample_power_cosine64;
@@ -104,8 +104,9 @@ impl Brdf for BlinnPhong {
         let Some((wi, wo)) = upper_pair(wi, wo) else {
             return Vec3::ZERO;
         };
-        let (h, _) = half64(wi, wo);
-        let lobe = self.norm * cos_power(h, DVec3::Z, f64::from(self.n));
+        // cos^n θh from the unnormalised half vector: no square root or division to
+        // normalise it on a rejection trial's critical path.
+        let lobe = self.norm * cos_power_z(wi + wo, f64::from(self.n));
         (self.kd.as_dvec3() * FRAC_1_PI + self.ks.as_dvec3() * lobe).as_vec3()
     }
 
