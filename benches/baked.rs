@@ -1,6 +1,8 @@
 //! The baked sampler (SPEC §7) as a renderer calls it: a new incident direction for every
 //! call (cosine-distributed, drawn before the clock starts), against the Beckmann analytic
-//! sample that #18's goals are stated in (cook-torrance m = 0.1, at the bench's fixed wi).
+//! sample that #18's goals are stated in (cook-torrance m = 0.1): at the bench's fixed wi
+//! (`analytic`) and over the baked rows' own random wi (`analytic-random-wi`, the
+//! like-for-like one).
 //! Rows per set: `sample` in rejection and warp mode and `pdf(wi, wo)` in both modes, on
 //! batches of 1024 calls. Ratios come from one run: `cargo bench --bench baked`.
 
@@ -53,6 +55,15 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             for _ in 0..BATCH {
                 black_box(analytic.sample(&mut rng));
+            }
+        });
+    });
+    // The same sample with the baked rows' own random wi, in the same kind of loop: the
+    // like-for-like yardstick (`brdf bench`'s baked table divides by this one).
+    group.bench_function("analytic-random-wi", |b| {
+        b.iter(|| {
+            for &(wi, uc, u) in &inputs {
+                black_box(beckmann.sample(wi, uc, u));
             }
         });
     });
