@@ -588,6 +588,17 @@ fn bench_reports_ratios_from_unbiased_estimates() {
     let per_node = set["bytes_per_node"].as_f64().unwrap();
     assert!((16.0..=32.0).contains(&per_node), "{per_node}");
     assert!(v["beckmann_analytic_ns_per_sample"].as_f64().unwrap() > 0.0);
+    // The baked rows are divided by the Beckmann sample timed in their own loop.
+    let yard = v["beckmann_analytic_random_wi_ns_per_sample"]
+        .as_f64()
+        .unwrap();
+    assert!(yard > 0.0 && yard.is_finite(), "{yard}");
+    for mode in ["rejection", "warp"] {
+        let b = &set["baked"];
+        let ns = b[format!("random_wi_ns_per_sample_{mode}")].as_f64().unwrap();
+        let r = b[format!("time_baked_{mode}_over_beckmann")].as_f64().unwrap();
+        assert!((r - ns / yard).abs() <= 1e-12 * r, "{mode}: {b}");
+    }
     for key in [
         "time_quadtree_over_analytic",
         "efficiency_quadtree_over_cosine",
