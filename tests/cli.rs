@@ -595,8 +595,12 @@ fn bench_reports_ratios_from_unbiased_estimates() {
     assert!(yard > 0.0 && yard.is_finite(), "{yard}");
     for mode in ["rejection", "warp"] {
         let b = &set["baked"];
-        let ns = b[format!("random_wi_ns_per_sample_{mode}")].as_f64().unwrap();
-        let r = b[format!("time_baked_{mode}_over_beckmann")].as_f64().unwrap();
+        let ns = b[format!("random_wi_ns_per_sample_{mode}")]
+            .as_f64()
+            .unwrap();
+        let r = b[format!("time_baked_{mode}_over_beckmann")]
+            .as_f64()
+            .unwrap();
         assert!((r - ns / yard).abs() <= 1e-12 * r, "{mode}: {b}");
     }
     for key in [
