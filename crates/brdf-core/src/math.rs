@@ -149,6 +149,23 @@ pub fn exp_nonpositive_short(x: f64) -> f64 {
 #[inline]
 #[must_use]
 pub fn acos_nonnegative(c: f64) -> f64 {
+    let c = c.clamp(0.0, 1.0);
+    let c = if c.is_nan() { 1.0 } else { c };
+    let high = c >= 0.5;
+    let x = if high { sqrt(0.5 * (1.0 - c)) } else { c };
+    let asin = asin_to_half(x);
+    if high {
+        2.0 * asin
+    } else {
+        core::f64::consts::FRAC_PI_2 - asin
+    }
+}
+
+/// asin x for x ∈ [0, ½], the core of [`acos_nonnegative`] (3·10⁻¹³ relative): x + x·t·g(t),
+/// t = x², g its Chebyshev-node interpolant.
+#[inline(always)]
+#[must_use]
+pub(crate) fn asin_to_half(x: f64) -> f64 {
     /// g's monomial coefficients, g0…g8.
     const G: [f64; 9] = [
         0.16666666666738633,
@@ -161,20 +178,11 @@ pub fn acos_nonnegative(c: f64) -> f64 {
         0.001067506315036309,
         0.028346745231833333,
     ];
-    let c = c.clamp(0.0, 1.0);
-    let c = if c.is_nan() { 1.0 } else { c };
-    let high = c >= 0.5;
-    let x = if high { sqrt(0.5 * (1.0 - c)) } else { c };
     let t = x * x;
     let (t2, t4) = (t * t, t * t * t * t);
     let p = |i: usize| G[i] + t * G[i + 1];
     let g = (p(0) + t2 * p(2)) + t4 * (p(4) + t2 * p(6)) + (t4 * t4) * G[8];
-    let asin = x + x * t * g;
-    if high {
-        2.0 * asin
-    } else {
-        core::f64::consts::FRAC_PI_2 - asin
-    }
+    x + x * t * g
 }
 
 /// (sin θ, cos θ) for |θ| ≤ π/2, in plain arithmetic (no call, no table, no branch): the
