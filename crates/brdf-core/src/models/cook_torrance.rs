@@ -20,7 +20,6 @@ pub struct CookTorrance {
     m: f32,
     f0: Vec3,
     kd: Vec3,
-    eta: DVec3,
     /// η² − 1 per channel, Fresnel's `e2` ([`fresnel_dielectric`]).
     eta2_minus_1: DVec3,
     /// 1/m² and 1/(π m²): Beckmann's exponent and normalisation.
@@ -65,7 +64,6 @@ impl CookTorrance {
             m,
             f0,
             kd,
-            eta,
             eta2_minus_1: eta.map(|eta| (eta - 1.0) * (eta + 1.0)),
             inv_m2: 1.0 / m2,
             inv_pi_m2: FRAC_1_PI / m2,
@@ -233,7 +231,12 @@ mod tests {
         let m2 = f64::from(ct.m) * f64::from(ct.m);
         let d = m::exp(-tan2 / m2) / (core::f64::consts::PI * m2 * c2 * c2);
         let g = (2.0 * h.z * wo.z / u).min(2.0 * h.z * wi.z / u).min(1.0);
-        let f = ct.eta.map(|eta| {
+        // η from f0 as MODELS.md §6 gives it, independently of `new`.
+        let eta = ct
+            .f0
+            .as_dvec3()
+            .map(|f| (1.0 + m::sqrt(f)) / (1.0 - m::sqrt(f)));
+        let f = eta.map(|eta| {
             let g = m::sqrt(eta * eta - 1.0 + u * u);
             let a = (g - u) / (g + u);
             let b = (u * (g + u) - 1.0) / (u * (g - u) + 1.0);
