@@ -507,6 +507,25 @@ fn sample_and_pdf_reject_bad_input_with_status_2() {
             "",
             "target_trials",
         ),
+        // A target below the bounds' safety factor cannot be reached: refused at once, not
+        // split to the node budget (20 s) first.
+        (
+            vec![
+                "sample",
+                "--model",
+                "lambert",
+                "--wi",
+                "0,0,1",
+                "--count",
+                "3",
+                "--target-trials",
+                "1",
+                "--out",
+                o,
+            ],
+            "",
+            "bound_safety",
+        ),
         // Absurd counts are refused at once (no hang, no file), not run for days.
         (
             vec![

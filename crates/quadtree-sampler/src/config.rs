@@ -56,8 +56,9 @@ pub struct BuildConfig {
     /// sharp for the tree's depth), where the node budget alone would allow hours.
     pub evaluation_budget: u64,
     /// Refine further, greedily by wasted volume, until the expected number of rejection
-    /// trials per sample is at most this (SPEC §3). Default `None`: the seed's rule, whose
-    /// bound E\[T\] ≤ 1/`split_threshold` is always enforced.
+    /// trials per sample is at most this (SPEC §3); at least `bound_safety`, E\[T\]'s floor.
+    /// Default `None`: the seed's rule, whose bound E\[T\] ≤ 1/`split_threshold` is always
+    /// enforced.
     pub target_trials: Option<f64>,
     /// Bounds are the largest value found (dense grid, peak hints, local search) times this.
     /// Default 1.02.
@@ -143,13 +144,21 @@ impl BuildConfig {
                 "at least 1",
             );
         }
-        if let Some(t) = self.target_trials
-            && (t.is_nan() || t < 1.0)
-        {
-            return bad("target_trials", t, "at least 1");
-        }
         if !(self.bound_safety >= 1.0 && self.bound_safety.is_finite()) {
             return bad("bound_safety", self.bound_safety, "at least 1");
+        }
+        // Every leaf's box is at least bound_safety × its v1, so E[T] never falls below the
+        // safety factor: a smaller target would split until the node budget ran out (20 s
+        // and 1M nodes for Lambert) and still miss.
+        if let Some(t) = self.target_trials
+            && (t.is_nan() || t < self.bound_safety)
+        {
+            return bad(
+                "target_trials",
+                t,
+                "at least bound_safety (1.02 by default): E[T] cannot fall below the bounds' \
+                 safety factor",
+            );
         }
         if !(2..=64).contains(&self.bound_grid) {
             return bad("bound_grid", f64::from(self.bound_grid), "in [2, 64]");

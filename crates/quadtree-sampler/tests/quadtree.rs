@@ -497,6 +497,16 @@ fn bad_inputs_are_typed_errors() {
             target_trials: Some(0.5),
             ..BuildConfig::default()
         },
+        // Below the safety factor, E[T]'s floor: unreachable, refused before any split.
+        BuildConfig {
+            target_trials: Some(1.0),
+            ..BuildConfig::default()
+        },
+        BuildConfig {
+            target_trials: Some(1.1),
+            bound_safety: 1.2,
+            ..BuildConfig::default()
+        },
         BuildConfig {
             bound_safety: 0.9,
             ..BuildConfig::default()

@@ -285,8 +285,10 @@ impl TreePanel {
             rebuild |= ui
                 .add_enabled(
                     inputs.use_target,
+                    // E[T] cannot fall below the bounds' safety factor (1.02, a build
+                    // error below it), and just above it a tree splits to its node budget.
                     egui::DragValue::new(&mut inputs.target_trials)
-                        .range(1.01..=4.0)
+                        .range(1.05..=4.0)
                         .speed(0.01),
                 )
                 .labelled_by(check.id)

@@ -29,7 +29,8 @@ pub(crate) struct BakeArgs {
     /// Map of every grid tree.
     #[arg(long, value_enum, default_value_t = MapArg::Orthographic)]
     map: MapArg,
-    /// Refine each grid tree until its expected trials per sample are at most this.
+    /// Refine each grid tree until its expected trials per sample are at most this (at least
+    /// 1.02, the bounds' safety factor, below which E[T] cannot fall).
     #[arg(long, value_name = "T")]
     target_trials: Option<f64>,
 }
