@@ -644,9 +644,17 @@ mod files {
                 let declared = declared_length(&bytes).map_err(format)?;
                 // One byte past the declared length tells a longer file from an exact one.
                 let rest = declared + 1 - HEADER as u64;
-                let hint = file.metadata().map_or(0, |m| m.len()).min(declared);
-                bytes.reserve(usize::try_from(hint).unwrap_or(0));
+                let len = file.metadata().map_or(0, |m| m.len());
+                bytes.reserve(usize::try_from(len.min(declared)).unwrap_or(0));
                 file.take(rest).read_to_end(&mut bytes).map_err(io)?;
+                if bytes.len() as u64 > declared {
+                    // Only one byte past the declared length was read: the file's own length
+                    // (where it has one) says how many more there are.
+                    return Err(format(BakeFileError::TrailingBytes {
+                        expected: declared,
+                        found: len.max(bytes.len() as u64),
+                    }));
+                }
             }
             Self::from_bytes(&bytes).map_err(format)
         }

@@ -658,6 +658,20 @@ fn damaged_bake_files_are_typed_errors() {
     assert!(BakedSampler::load(&path).is_ok());
     std::fs::write(&path, [&bytes[..], &[0]].concat()).unwrap();
     assert!(BakedSampler::load(&path).is_err());
+    // With many more, the error names the file's length, not the one byte past the
+    // declared length that `load` reads to tell them apart.
+    let n = bytes.len() as u64;
+    std::fs::write(&path, [&bytes[..], &[0; 1000]].concat()).unwrap();
+    assert!(
+        matches!(
+            BakedSampler::load(&path).unwrap_err(),
+            quadtree_sampler::BakeIoError::Format {
+                source: BakeFileError::TrailingBytes { expected, found },
+                ..
+            } if expected == n && found == n + 1000
+        ),
+        "a file 1000 bytes too long"
+    );
     std::fs::write(&path, &bytes[..bytes.len() - 1]).unwrap();
     assert!(BakedSampler::load(&path).is_err());
     std::fs::remove_dir_all(&dir).unwrap();
