@@ -237,6 +237,9 @@ impl Brdf for Adjoint<'_> {
     fn peak_hints(&self, wi: Vec3) -> PeakHints {
         self.0.peak_hints(wi)
     }
+    fn integration_tolerance(&self) -> f64 {
+        self.0.integration_tolerance()
+    }
     fn symmetry(&self) -> Symmetry {
         Symmetry {
             reciprocal: false,

@@ -33,7 +33,9 @@ pub struct BuildConfig {
     pub rule: IntegrationRule,
     /// Relative tolerance of each node's adaptive integral (with an absolute floor of 1e-2 of
     /// it times the total volume). Default 1e-6: far below the statistical noise of 10⁸
-    /// samples in one leaf.
+    /// samples in one leaf. A model may ask for a looser one
+    /// ([`brdf_core::Brdf::integration_tolerance`]: a table read by nearest bin); the larger
+    /// of the two is used.
     pub integration_tolerance: f64,
     /// Extra levels of adaptive integration below a node. Default 8. Deep nodes take fewer:
     /// no integration cell is finer than 2⁻²² of the square (a few f32 steps of a direction,

@@ -169,10 +169,19 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
             &mut Peak::default(),
             ctx.par_levels,
         );
-        ctx.tol_floor = config.integration_tolerance * 1e-2 * estimate.abs();
+        ctx.tol_floor = ctx.tolerance() * 1e-2 * estimate.abs();
         ctx.estimate = estimate;
         ctx.spend((1 + cell.applications(tol, 6)) * ctx.per_application);
         (ctx, cell)
+    }
+
+    /// The relative tolerance of each node's integration: the configured one, or the
+    /// model's [`Brdf::integration_tolerance`] where that is larger.
+    #[inline]
+    pub(crate) fn tolerance(&self) -> f64 {
+        self.config
+            .integration_tolerance
+            .max(self.brdf.integration_tolerance())
     }
 
     /// f_r's luminance at a local direction (the density the tree follows).
@@ -231,7 +240,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         // integration already applied the rule here).
         let mut cell = cells.unwrap_or_else(|| Cell::once(self.domain, rect, &self.rule, &f));
         let mut peak = cell.peak;
-        let tol = (self.config.integration_tolerance * cell.value.abs()).max(self.tol_floor);
+        let tol = (self.tolerance() * cell.value.abs()).max(self.tol_floor);
         let depth = self.integration_depth(rect);
         let v1 = refine_cells(
             self.domain,

@@ -36,6 +36,16 @@ pub const MERL_FILE_BYTES: u64 = 12 + 3 * 8 * MERL_BINS as u64;
 /// 1.66/1500), as the database's reader applies it.
 pub const MERL_SCALE: [f64; 3] = [1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0];
 
+/// [`Brdf::integration_tolerance`] of the nearest-bin lookup. Its f_r is a staircase whose
+/// steps the quadtree's cells cannot follow (nodes are squares of the disk, steps are curves
+/// of constant θh, θd or φd), so integrals converge slowly: on the benches' measured material
+/// (Cook–Torrance m = 0.1 tabulated with 3 % noise) at θi = 0°, 45° and 79°, a per-wi tree
+/// to 10⁻⁶ stopped at its evaluation budget after 6–8 s with 41–149 nodes and E\[T\] up to
+/// 2.35; to 10⁻⁴ it is complete (345–373 nodes, E\[T\] 1.18–1.47) in 0.33–0.49 s, to 10⁻⁵ the
+/// same tree in 2.3–3.9 s, and the total volumes of the two differ by 2·10⁻⁵–2·10⁻⁴. The
+/// linear lookup is continuous and converges at any tolerance (0.3–0.8 s at 10⁻⁶).
+pub const NEAREST_INTEGRATION_TOLERANCE: f64 = 1e-4;
+
 /// How f_r is read from the bins.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum MerlLookup {
@@ -517,6 +527,13 @@ impl Brdf for Merl {
             mirror_x: false,
             mirror_y: false,
             reciprocal: true,
+        }
+    }
+
+    fn integration_tolerance(&self) -> f64 {
+        match self.lookup {
+            MerlLookup::Nearest => NEAREST_INTEGRATION_TOLERANCE,
+            MerlLookup::Linear => 0.0,
         }
     }
 
