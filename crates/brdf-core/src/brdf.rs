@@ -240,7 +240,9 @@ pub trait Brdf: Send + Sync + fmt::Debug {
     /// of steps, on which an adaptive rule converges only as fast as its cells shrink along
     /// every step: a tolerance of 10⁻⁶ spent a build's whole evaluation budget on a few dozen
     /// nodes. A leaf integral within this of the true one leaves a sampler's pdf exact to
-    /// the same relative amount, which no statistical test short of ~10¹⁰ samples sees.
+    /// about the same relative amount (`merl`'s 10⁻⁴ passed `brdf test` against its own pdf
+    /// at 10⁸ samples). The quadtree reads values above 10⁻³ as 10⁻³, and NaN or negative
+    /// ones as 0.
     fn integration_tolerance(&self) -> f64 {
         0.0
     }

@@ -108,6 +108,10 @@ pub(crate) struct Context<'a, B: Brdf + ?Sized> {
 /// ([`Context::integration_depth`]).
 pub(crate) const FINEST_CELL_LOG2: i32 = -22;
 
+/// The loosest tolerance a model's [`Brdf::integration_tolerance`] may ask for: 10⁻³, the
+/// relative noise of 10⁶ samples in one leaf (the default tolerance, 10⁻⁶, is that of 10¹²).
+pub(crate) const MAX_MODEL_TOLERANCE: f64 = 1e-3;
+
 impl<'a, B: Brdf + ?Sized> Context<'a, B> {
     /// The context, and the root's integration cells (the estimate of the total volume is an
     /// adaptive integration of the root, which the root's own evaluation then continues).
@@ -176,12 +180,17 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
     }
 
     /// The relative tolerance of each node's integration: the configured one, or the
-    /// model's [`Brdf::integration_tolerance`] where that is larger.
+    /// model's [`Brdf::integration_tolerance`] where that is larger, up to
+    /// [`MAX_MODEL_TOLERANCE`] (a NaN or negative one is ignored).
     #[inline]
     pub(crate) fn tolerance(&self) -> f64 {
-        self.config
-            .integration_tolerance
-            .max(self.brdf.integration_tolerance())
+        let own = self.config.integration_tolerance;
+        let model = self.brdf.integration_tolerance();
+        if model > own {
+            model.min(MAX_MODEL_TOLERANCE).max(own)
+        } else {
+            own
+        }
     }
 
     /// f_r's luminance at a local direction (the density the tree follows).

@@ -1048,3 +1048,66 @@ fn shaped_leaves_cut_trials_on_the_seed_trees() {
             .any(|l| !l.proposal.shape.is_flat())
     );
 }
+
+/// A model's own integration tolerance (`Brdf::integration_tolerance`) loosens the build's
+/// where it is larger, up to 10⁻³; a NaN, negative or smaller one changes nothing. The trees
+/// are compared node for node (v1 and bound bits).
+#[test]
+fn a_models_integration_tolerance_is_used_within_its_limit() {
+    #[derive(Debug)]
+    struct Loose(Box<dyn Brdf>, f64);
+    impl Brdf for Loose {
+        fn name(&self) -> &'static str {
+            self.0.name()
+        }
+        fn params(&self) -> brdf_core::ParamSet {
+            self.0.params()
+        }
+        fn eval(&self, wi: Vec3, wo: Vec3) -> Vec3 {
+            self.0.eval(wi, wo)
+        }
+        fn peak_hints(&self, wi: Vec3) -> brdf_core::PeakHints {
+            self.0.peak_hints(wi)
+        }
+        fn symmetry(&self) -> brdf_core::Symmetry {
+            self.0.symmetry()
+        }
+        fn integration_tolerance(&self) -> f64 {
+            self.1
+        }
+    }
+    let wi = dir(40.0, 20.0);
+    let bits = |t: &Quadtree| -> Vec<(u64, u64)> {
+        t.nodes()
+            .iter()
+            .map(|n| (n.v1.to_bits(), n.bound.to_bits()))
+            .collect()
+    };
+    let build = |tolerance: f64, config: f64| {
+        let b = Loose(model("phong", &["n=200"]), tolerance);
+        let cfg = BuildConfig {
+            integration_tolerance: config,
+            ..BuildConfig::default()
+        };
+        bits(&Quadtree::new(&b, wi, cfg).unwrap())
+    };
+    let plain = build(0.0, 1e-6);
+    for t in [f64::NAN, -1.0, 1e-9, 1e-6] {
+        assert!(build(t, 1e-6) == plain, "tolerance {t} changed the tree");
+    }
+    let loose = build(0.0, 1e-4);
+    assert!(
+        loose != plain,
+        "1e-4 integrates as 1e-6 does: the test has no power"
+    );
+    assert!(build(1e-4, 1e-6) == loose);
+    let loosest = build(0.0, 1e-3);
+    for t in [1e-3, 0.5, f64::INFINITY] {
+        assert!(
+            build(t, 1e-6) == loosest,
+            "tolerance {t} is not capped at 1e-3"
+        );
+    }
+    // The cap limits the model, not the configuration.
+    assert!(build(0.5, 1e-2) == build(0.0, 1e-2));
+}
