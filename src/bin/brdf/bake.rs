@@ -30,7 +30,7 @@ pub(crate) struct BakeArgs {
     #[arg(long, value_enum, default_value_t = MapArg::Orthographic)]
     map: MapArg,
     /// Refine each grid tree until its expected trials per sample are at most this (at least
-    /// 1.02, the bounds' safety factor, below which E[T] cannot fall).
+    /// 1.02, the bounds' safety factor, below which the expected trials cannot fall).
     #[arg(long, value_name = "T")]
     target_trials: Option<f64>,
 }

@@ -61,7 +61,7 @@ pub(crate) struct SamplerOptions {
     #[arg(long, value_enum, default_value_t = MapArg::Orthographic)]
     pub(crate) map: MapArg,
     /// Refine the quadtree until the expected trials per sample are at most this (rejection;
-    /// at least 1.02, the bounds' safety factor, below which E[T] cannot fall).
+    /// at least 1.02, the bounds' safety factor, below which they cannot fall).
     #[arg(long, value_name = "T")]
     pub(crate) target_trials: Option<f64>,
     /// Sample a baked sampler (a file of `brdf bake`) instead of building a tree for wi
