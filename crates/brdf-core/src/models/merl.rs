@@ -95,11 +95,17 @@ fn half_diff_lookup(wi: DVec3, h: DVec3) -> [f64; 3] {
     let t = DVec3::new(wi.x * cp + wi.y * sp, wi.y * cp - wi.x * sp, wi.z);
     let (st, ct) = (rho, h.z);
     let d = DVec3::new(t.x * ct - t.z * st, t.y, t.z * ct + t.x * st);
-    [
-        m::acos(h.z.clamp(-1.0, 1.0)),
-        m::acos(d.z.clamp(-1.0, 1.0)),
-        m::atan2(d.y, d.x),
-    ]
+    // Above the horizon (every evaluation) h_z and d_z = wi·h are at least 0, where the
+    // polynomial acos (within 5·10⁻¹³ rad of the backend's) saves a tenth of an evaluation
+    // (95.5 → 86.2 ns on random pairs); `half_diff` of other pairs keeps the backend's.
+    let acos = |c: f64| {
+        if c >= 0.0 {
+            m::acos_nonnegative(c)
+        } else {
+            m::acos(c.max(-1.0))
+        }
+    };
+    [acos(h.z), acos(d.z), m::atan2(d.y, d.x)]
 }
 
 /// The inverse of [`half_diff`]: the unit pair (wi, wo) of the angles (θh, φh, θd, φd).
