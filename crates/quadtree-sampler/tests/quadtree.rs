@@ -6,7 +6,9 @@
 use brdf_core::quadrature::{GaussLegendre, directional_albedo};
 use brdf_core::{Brdf, DiskMap, geometry::luminance, registry};
 use glam::Vec3;
-use quadtree_sampler::{BuildConfig, BuildError, PackedTree, Quadtree, QuadtreeSampler, refleja};
+use quadtree_sampler::{
+    BuildConfig, BuildError, PackedTree, Quadtree, QuadtreeSampler, RETRY_TOLERANCE, refleja,
+};
 use rand_core::SeedableRng;
 use rand_pcg::Pcg64;
 use std::f64::consts::PI;
@@ -1110,4 +1112,64 @@ fn a_models_integration_tolerance_is_used_within_its_limit() {
     }
     // The cap limits the model, not the configuration.
     assert!(build(0.5, 1e-2) == build(0.0, 1e-2));
+}
+
+/// A build its evaluation budget stops is built again to `RETRY_TOLERANCE`, and that tree is
+/// kept where it is complete: over a range of budgets, every build is an error, the tree at
+/// its own tolerance, or (where the budget stopped 10⁻⁶ but not 10⁻⁴) the complete 10⁻⁴
+/// tree, node for node; serial and parallel agree.
+#[test]
+fn a_build_the_evaluation_budget_stops_is_retried_looser() {
+    let b = model("phong", &["n=1000", "kd=0"]);
+    let wi = dir(45.0, 30.0);
+    let bits = |t: &Quadtree| -> Vec<(u64, u64)> {
+        t.nodes()
+            .iter()
+            .map(|n| (n.v1.to_bits(), n.bound.to_bits()))
+            .collect()
+    };
+    let cfg = |budget: u64, tolerance: f64, parallel: bool| BuildConfig {
+        evaluation_budget: budget,
+        integration_tolerance: tolerance,
+        parallel,
+        ..BuildConfig::default()
+    };
+    let looser = Quadtree::new(&*b, wi, cfg(1 << 28, RETRY_TOLERANCE, false)).unwrap();
+    assert!(!looser.budget_exhausted());
+    let mut retried = 0;
+    for k in 56..80u32 {
+        // Budgets 2^(k/4): 2^14 to 2^19.75.
+        let budget = (2f64.powf(f64::from(k) / 4.0)) as u64;
+        let serial = Quadtree::new(&*b, wi, cfg(budget, 1e-6, false));
+        let parallel = Quadtree::new(&*b, wi, cfg(budget, 1e-6, true));
+        match (&serial, &parallel) {
+            (Ok(s), Ok(p)) => {
+                assert!(bits(s) == bits(p), "budget {budget}: serial != parallel");
+                assert_eq!(s.integration_tolerance(), p.integration_tolerance());
+                if s.integration_tolerance() == RETRY_TOLERANCE {
+                    assert!(
+                        !s.budget_exhausted(),
+                        "budget {budget}: kept an exhausted retry"
+                    );
+                    assert!(
+                        bits(s) == bits(&looser),
+                        "budget {budget}: not the 1e-4 tree"
+                    );
+                    retried += 1;
+                } else {
+                    assert_eq!(s.integration_tolerance(), 1e-6);
+                }
+            }
+            (Err(_), Err(_)) => {}
+            _ => panic!("budget {budget}: serial and parallel differ in success"),
+        }
+    }
+    assert!(
+        retried > 0,
+        "no budget stopped 1e-6 and not 1e-4: the test has no power"
+    );
+    // A complete build is the first attempt's.
+    let plain = Quadtree::new(&*b, wi, BuildConfig::default()).unwrap();
+    assert_eq!(plain.integration_tolerance(), 1e-6);
+    assert!(!plain.budget_exhausted());
 }
