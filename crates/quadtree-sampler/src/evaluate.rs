@@ -10,7 +10,7 @@ use crate::integrate::{Cell, Domain, Peak, UnitRule, refine_cells};
 use crate::proposal::{Proposal, Shape};
 use alloc::vec::Vec;
 use brdf_core::{Brdf, DiskMap};
-use core::sync::atomic::{AtomicU64, AtomicUsize, Ordering as AtomicOrdering};
+use core::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering as AtomicOrdering};
 use glam::{DVec2, DVec3, Vec3};
 
 /// A node's integration ([`Context::integrate_node`]).
@@ -95,6 +95,10 @@ pub(crate) struct Context<'a, B: Brdf + ?Sized> {
     pub(crate) par_levels: u32,
     /// Integration cells remembered for the leaves (see [`CELL_CACHE_LIMIT`]).
     pub(crate) cached: AtomicUsize,
+    /// Set where the evaluation budget stopped the build (at its decision points, which a
+    /// parallel build meets as the serial one does: the retry in [`crate::Quadtree::new`]
+    /// reads this, not the final count, which speculation may leave different).
+    pub(crate) ran_out: AtomicBool,
     /// f_r evaluations spent so far (see [`BuildConfig::evaluation_budget`]).
     pub(crate) spent: AtomicU64,
     /// Evaluations per rule application (n² points; twice that where the angle chart
@@ -148,6 +152,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
                 0
             },
             cached: AtomicUsize::new(0),
+            ran_out: AtomicBool::new(false),
             spent: AtomicU64::new(0),
             per_application: {
                 let n = match config.rule {
@@ -504,6 +509,15 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
     /// Whether the evaluation budget is spent with `nodes` built (checked between batches
     /// of nodes, whose work does not depend on the order the threads did it in).
     pub(crate) fn overspent(&self, nodes: usize) -> bool {
+        let out = self.spent_past_budget(nodes);
+        if out {
+            self.ran_out.store(true, AtomicOrdering::Relaxed);
+        }
+        out
+    }
+
+    /// Whether the evaluations spent exceed the budget with `nodes` built.
+    fn spent_past_budget(&self, nodes: usize) -> bool {
         let allowed = self
             .config
             .evaluation_budget

@@ -355,13 +355,9 @@ impl Quadtree {
         let attempt = |config: BuildConfig| {
             let (ctx, cells) = Context::new(brdf, wi, config);
             let tree = Self::build(&ctx, cells);
-            let overspent = |t: &Self| ctx.overspent(t.nodes.len());
             let retry = ctx.tolerance() < RETRY_TOLERANCE
-                && match &tree {
-                    Ok(t) => t.budget_exhausted && overspent(t),
-                    Err(BuildError::Exhausted { nodes, .. }) => ctx.overspent(*nodes),
-                    Err(_) => false,
-                };
+                && ctx.ran_out.load(core::sync::atomic::Ordering::Relaxed)
+                && matches!(tree, Ok(_) | Err(BuildError::Exhausted { .. }));
             (
                 tree.map(|mut t| {
                     t.integration_tolerance = ctx.tolerance();

@@ -278,21 +278,31 @@ fn serial_and_parallel_builds_are_bit_identical() {
         let wi = dir(45.0, 10.0);
         // The seed's rule, target mode, and builds that the node budget or the evaluation
         // budget stops part-way (a parallel build evaluates ahead of the breadth-first pass,
-        // which must still stop where the serial one does), on both maps.
+        // which must still stop where the serial one does), on both maps. An evaluation
+        // budget that stops a build to 10⁻⁶ has it built again to RETRY_TOLERANCE; one that
+        // stops a build already at that tolerance leaves it part-way.
         let budgets = [
-            (None, u32::MAX, u64::MAX, DiskMap::Orthographic),
-            (Some(1.3), u32::MAX, u64::MAX, DiskMap::Orthographic),
-            (None, 61, u64::MAX, DiskMap::Orthographic),
-            (Some(1.1), u32::MAX, 100_000, DiskMap::Orthographic),
-            (None, u32::MAX, u64::MAX, DiskMap::Concentric),
-            (Some(1.2), 17, u64::MAX, DiskMap::Concentric),
+            (None, u32::MAX, u64::MAX, DiskMap::Orthographic, 1e-6),
+            (Some(1.3), u32::MAX, u64::MAX, DiskMap::Orthographic, 1e-6),
+            (None, 61, u64::MAX, DiskMap::Orthographic, 1e-6),
+            (Some(1.1), u32::MAX, 100_000, DiskMap::Orthographic, 1e-6),
+            (
+                Some(1.1),
+                u32::MAX,
+                48_000,
+                DiskMap::Orthographic,
+                RETRY_TOLERANCE,
+            ),
+            (None, u32::MAX, u64::MAX, DiskMap::Concentric, 1e-6),
+            (Some(1.2), 17, u64::MAX, DiskMap::Concentric, 1e-6),
         ];
-        for (target, node_budget, evaluation_budget, map) in budgets {
+        for (target, node_budget, evaluation_budget, map, tolerance) in budgets {
             let config = BuildConfig {
                 target_trials: target,
                 node_budget: node_budget.min(BuildConfig::default().node_budget),
                 evaluation_budget: evaluation_budget.min(BuildConfig::default().evaluation_budget),
                 map,
+                integration_tolerance: tolerance,
                 ..BuildConfig::default()
             };
             let serial = Quadtree::new(
@@ -307,7 +317,14 @@ fn serial_and_parallel_builds_are_bit_identical() {
             // (The evaluation budget's allowance per node lets the smaller trees finish.)
             if node_budget != u32::MAX || (evaluation_budget != u64::MAX && name == "cook-torrance")
             {
-                assert!(serial.budget_exhausted(), "{name} {config:?}");
+                let retried = serial.integration_tolerance() > tolerance;
+                assert!(serial.budget_exhausted() != retried, "{name} {config:?}");
+                let by_evaluations = evaluation_budget != u64::MAX;
+                assert_eq!(
+                    retried,
+                    by_evaluations && tolerance < RETRY_TOLERANCE,
+                    "{name} {config:?}"
+                );
             }
             for threads in [1, 2, 3, 4] {
                 let pool = rayon::ThreadPoolBuilder::new()
