@@ -1068,6 +1068,14 @@ fn shaped_leaves_cut_trials_on_the_seed_trees() {
     );
 }
 
+/// Every node's v1 and bound, as bits: two trees compared node for node.
+fn node_bits(t: &Quadtree) -> Vec<(u64, u64)> {
+    t.nodes()
+        .iter()
+        .map(|n| (n.v1.to_bits(), n.bound.to_bits()))
+        .collect()
+}
+
 /// A model's own integration tolerance (`Brdf::integration_tolerance`) loosens the build's
 /// where it is larger, up to 10⁻³; a NaN, negative or smaller one changes nothing. The trees
 /// are compared node for node (v1 and bound bits).
@@ -1096,19 +1104,13 @@ fn a_models_integration_tolerance_is_used_within_its_limit() {
         }
     }
     let wi = dir(40.0, 20.0);
-    let bits = |t: &Quadtree| -> Vec<(u64, u64)> {
-        t.nodes()
-            .iter()
-            .map(|n| (n.v1.to_bits(), n.bound.to_bits()))
-            .collect()
-    };
     let build = |tolerance: f64, config: f64| {
         let b = Loose(model("phong", &["n=200"]), tolerance);
         let cfg = BuildConfig {
             integration_tolerance: config,
             ..BuildConfig::default()
         };
-        bits(&Quadtree::new(&b, wi, cfg).unwrap())
+        node_bits(&Quadtree::new(&b, wi, cfg).unwrap())
     };
     let plain = build(0.0, 1e-6);
     for t in [f64::NAN, -1.0, 1e-9, 1e-6] {
@@ -1139,12 +1141,6 @@ fn a_models_integration_tolerance_is_used_within_its_limit() {
 fn a_build_the_evaluation_budget_stops_is_retried_looser() {
     let b = model("phong", &["n=1000", "kd=0"]);
     let wi = dir(45.0, 30.0);
-    let bits = |t: &Quadtree| -> Vec<(u64, u64)> {
-        t.nodes()
-            .iter()
-            .map(|n| (n.v1.to_bits(), n.bound.to_bits()))
-            .collect()
-    };
     let cfg = |budget: u64, tolerance: f64, parallel: bool| BuildConfig {
         evaluation_budget: budget,
         integration_tolerance: tolerance,
@@ -1161,7 +1157,10 @@ fn a_build_the_evaluation_budget_stops_is_retried_looser() {
         let parallel = Quadtree::new(&*b, wi, cfg(budget, 1e-6, true));
         match (&serial, &parallel) {
             (Ok(s), Ok(p)) => {
-                assert!(bits(s) == bits(p), "budget {budget}: serial != parallel");
+                assert!(
+                    node_bits(s) == node_bits(p),
+                    "budget {budget}: serial != parallel"
+                );
                 assert_eq!(s.integration_tolerance(), p.integration_tolerance());
                 if s.integration_tolerance() == RETRY_TOLERANCE {
                     assert!(
@@ -1169,7 +1168,7 @@ fn a_build_the_evaluation_budget_stops_is_retried_looser() {
                         "budget {budget}: kept an exhausted retry"
                     );
                     assert!(
-                        bits(s) == bits(&looser),
+                        node_bits(s) == node_bits(&looser),
                         "budget {budget}: not the 1e-4 tree"
                     );
                     retried += 1;
