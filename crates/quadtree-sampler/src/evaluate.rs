@@ -507,22 +507,18 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
     }
 
     /// Whether the evaluation budget is spent with `nodes` built (checked between batches
-    /// of nodes, whose work does not depend on the order the threads did it in).
+    /// of nodes, whose work does not depend on the order the threads did it in). Only the
+    /// build's stop decisions ask, so a `true` is a stop, and it is recorded in `ran_out`.
     pub(crate) fn overspent(&self, nodes: usize) -> bool {
-        let out = self.spent_past_budget(nodes);
-        if out {
-            self.ran_out.store(true, AtomicOrdering::Relaxed);
-        }
-        out
-    }
-
-    /// Whether the evaluations spent exceed the budget with `nodes` built.
-    fn spent_past_budget(&self, nodes: usize) -> bool {
         let allowed = self
             .config
             .evaluation_budget
             .saturating_add((nodes as u64).saturating_mul(crate::config::EVALUATIONS_PER_NODE));
-        self.spent.load(AtomicOrdering::Relaxed) > allowed
+        let out = self.spent.load(AtomicOrdering::Relaxed) > allowed;
+        if out {
+            self.ran_out.store(true, AtomicOrdering::Relaxed);
+        }
+        out
     }
 
     /// Counts out a leaf's cells as it hands them to its children.

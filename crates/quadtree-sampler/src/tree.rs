@@ -358,13 +358,7 @@ impl Quadtree {
             let retry = ctx.tolerance() < RETRY_TOLERANCE
                 && ctx.ran_out.load(core::sync::atomic::Ordering::Relaxed)
                 && matches!(tree, Ok(_) | Err(BuildError::Exhausted { .. }));
-            (
-                tree.map(|mut t| {
-                    t.integration_tolerance = ctx.tolerance();
-                    t
-                }),
-                retry,
-            )
+            (tree, retry)
         };
         // A build the evaluation budget stopped is built once more, to RETRY_TOLERANCE, and
         // that tree kept where it is complete; every other build is the first attempt's.
