@@ -44,7 +44,7 @@ pub mod registry;
 pub mod special;
 pub mod warp;
 
-pub use brdf::{Brdf, BrdfSample, PeakHints, Symmetry};
+pub use brdf::{Brdf, BrdfSample, MIN_STEP_WIDTH, PeakHints, Symmetry, usable_step_width};
 pub use error::{Constraint, DataError, DataFault, DirectionError, ParamError};
 pub use frame::Frame;
 pub use glam;

@@ -16,6 +16,11 @@ const MAX_PEAKS: usize = 12;
 /// peaks, then a sampler's own (see [`Hints`]).
 const MAX_RIDGES: usize = 24;
 
+/// How far (radians) the direction moves per unit of a polar cell's outer variable, at
+/// most: θ = acos(1 − w²) for w² ≤ ½ and acos(v²) for v² ≤ ½ both move at most
+/// 2/√(3/2) ≈ 1.633 radians per unit.
+const OUTER_RATE: f64 = 1.633;
+
 /// Where a cell's integration cuts its ranges: directions where the integrand may peak
 /// sharply, and planes {w : n·w = c} along which it may be concentrated, as a lobe narrow
 /// along one tangent axis is. Each of a model's peaks brings its two axis planes x = h.x
@@ -27,6 +32,10 @@ pub(crate) struct Hints {
     peaks: Vec<DVec3>,
     /// Unit normals.
     ridges: Vec<Ridge>,
+    /// The width (radians) of the steps of a staircase integrand, already made usable
+    /// ([`brdf_core::usable_step_width`]); `None` for a continuous one. Each range is cut
+    /// into pieces whose directions lie no farther apart (see `integrate::adaptive`).
+    step: Option<f64>,
 }
 
 impl Hints {
@@ -44,7 +53,35 @@ impl Hints {
                 [(DVec3::X, h.x), (DVec3::Y, h.y)].map(|(normal, offset)| Ridge { normal, offset })
             })
             .collect();
-        Self { peaks, ridges }
+        Self {
+            peaks,
+            ridges,
+            step: None,
+        }
+    }
+
+    /// These hints for a staircase integrand of steps `step` wide (radians, as
+    /// [`brdf_core::Brdf::step_width`] declares it): the narrower of this and any step
+    /// already held. `None` changes nothing.
+    pub(crate) fn with_step(&self, step: Option<f64>) -> Self {
+        let step = match (self.step, brdf_core::usable_step_width(step)) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        Self {
+            step,
+            ..self.clone()
+        }
+    }
+
+    /// The widest piece, in a variable of integration along which directions move at most
+    /// `rate` radians per unit, that a staircase's error estimate is trusted on (∞ for a
+    /// continuous integrand or a variable that does not move the direction).
+    fn piece(&self, rate: f64) -> f64 {
+        match self.step {
+            Some(step) if rate > 0.0 => step / rate,
+            _ => f64::INFINITY,
+        }
     }
 
     /// These hints and more: `peaks` (without axis planes; non-finite ones dropped) and
@@ -272,7 +309,8 @@ impl CellGrid {
     /// dA = cos²s · cos t ds dt. Each range is first cut where the `hints` say g may peak
     /// (see `integrate::adaptive`): at their peaks' coordinates, where the line or circle of
     /// the inner integral crosses a ridge plane, and where a plane touches such a line or
-    /// circle (there its two crossings meet).
+    /// circle (there its two crossings meet). For a staircase (`hints` with a step) each
+    /// range is also cut into pieces over which the direction moves at most one step.
     pub(crate) fn integrate(
         &self,
         i: usize,
@@ -306,6 +344,8 @@ impl CellGrid {
                         p0,
                         p1,
                         breaks.as_slice(),
+                        // A step of φ moves the direction r times as far.
+                        hints.piece(r),
                         inner_tol,
                         MAX_PIECES,
                     )
@@ -333,6 +373,7 @@ impl CellGrid {
                         w0,
                         w1,
                         w_breaks.as_slice(),
+                        hints.piece(OUTER_RATE),
                         tol,
                         MAX_PIECES,
                     )
@@ -353,6 +394,7 @@ impl CellGrid {
                         v0,
                         v1,
                         v_breaks.as_slice(),
+                        hints.piece(OUTER_RATE),
                         tol,
                         MAX_PIECES,
                     )
@@ -402,6 +444,8 @@ impl CellGrid {
                                 t0,
                                 t1,
                                 t_breaks.as_slice(),
+                                // A step of t moves the direction cos s times as far.
+                                hints.piece(c),
                                 inner_tol,
                                 MAX_PIECES,
                             )
@@ -409,6 +453,8 @@ impl CellGrid {
                     s0,
                     s1,
                     s_breaks.as_slice(),
+                    // s is an angle along a great circle.
+                    hints.piece(1.0),
                     tol,
                     MAX_PIECES,
                 )

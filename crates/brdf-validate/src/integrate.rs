@@ -8,6 +8,8 @@ pub(crate) const MAX_PIECES: usize = 200;
 /// at each of up to 12 peaks and at two points for each of up to 24 ridge planes (see
 /// `CellGrid::integrate`).
 pub(crate) const MAX_BREAKS: usize = 64;
+/// Most equal pieces [`adaptive`] cuts one first piece into for a staircase's steps.
+pub(crate) const STEP_PIECES: usize = 64;
 /// Most levels of pieces halving toward a break where f spikes (see [`adaptive`]).
 const GRADING: usize = 40;
 
@@ -71,11 +73,22 @@ fn gk15(f: &(impl Fn(f64) -> f64 + ?Sized), a: f64, b: f64) -> (f64, f64) {
 /// the outermost node too: where f at a break spikes over f at the nearest node beside it,
 /// that side's piece is first graded toward the break (see the body). Without a break
 /// inside (a, b) this is plain QAG, bit for bit.
+///
+/// `max_piece`: for a staircase integrand (a table read by nearest bin,
+/// [`brdf_core::Brdf::step_width`]), the width of its steps in the variable of integration;
+/// ∞ otherwise. Each first piece wider than it is cut into equal pieces no wider (at most
+/// [`STEP_PIECES`] of them) before the bisection starts: over a piece that holds many steps,
+/// the Gauss and Kronrod sums of a staircase can agree by chance while both are off, and the
+/// loop would stop there. (A baked sampler's pdf on a MERL table, summed over 25 × 25
+/// cells, came out 6·10⁻⁴ above what it draws, and 3·10⁻⁴ on the polar grid; cut to 1°
+/// pieces, within 2·10⁻⁵ on both, and no slower.)
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn adaptive(
     f: &(impl Fn(f64) -> f64 + ?Sized),
     a: f64,
     b: f64,
     breaks: &[f64],
+    max_piece: f64,
     tol: f64,
     limit: usize,
 ) -> f64 {
@@ -169,6 +182,15 @@ pub(crate) fn adaptive(
     }
     cuts.push(b);
     cuts.sort_unstable_by(f64::total_cmp);
+    if max_piece < b - a {
+        let mut within = Vec::new();
+        for w in cuts.windows(2) {
+            let k = ((w[1] - w[0]) / max_piece).ceil().min(STEP_PIECES as f64) as usize;
+            within.extend((1..k).map(|j| w[0] + (w[1] - w[0]) * (j as f64 / k as f64)));
+        }
+        cuts.extend(within);
+        cuts.sort_unstable_by(f64::total_cmp);
+    }
     let mut heap = std::collections::BinaryHeap::with_capacity(limit.min(1024));
     let (mut total_err, mut finite) = (0.0, true);
     for w in cuts.windows(2) {
@@ -235,7 +257,15 @@ mod tests {
             let (_, err) = gk15(&|x: f64| m::pow(x, f64::from(k)), 0.0, 1.0);
             assert!(err < 1e-15, "G7 x^{k}: {err}");
         }
-        let s = adaptive(&|x: f64| m::sqrt(x), 0.0, 1.0, &[], 1e-12, 200);
+        let s = adaptive(
+            &|x: f64| m::sqrt(x),
+            0.0,
+            1.0,
+            &[],
+            f64::INFINITY,
+            1e-12,
+            200,
+        );
         assert!((s - 2.0 / 3.0).abs() < 1e-11);
     }
 
@@ -248,7 +278,7 @@ mod tests {
             (x - c).abs()
         };
         let exact = 0.5 * (c * c + (1.0 - c) * (1.0 - c));
-        let s = adaptive(&kink, 0.0, 1.0, &[], 1e-12, MAX_PIECES);
+        let s = adaptive(&kink, 0.0, 1.0, &[], f64::INFINITY, 1e-12, MAX_PIECES);
         assert!((s - exact).abs() < 1e-12, "{s} vs {exact}");
         // One chain of bisections toward the kink, not a full-depth tree.
         assert!(count.get() < 1500, "{} evaluations", count.get());
@@ -257,12 +287,12 @@ mod tests {
             count.set(count.get() + 1);
             if x < c { 1.0 } else { 3.0 }
         };
-        let s = adaptive(&jump, 0.0, 1.0, &[], 1e-9, MAX_PIECES);
+        let s = adaptive(&jump, 0.0, 1.0, &[], f64::INFINITY, 1e-9, MAX_PIECES);
         assert!((s - (c + 3.0 * (1.0 - c))).abs() < 1e-9, "{s}");
         assert!(count.get() < 2000, "{} evaluations", count.get());
         // The limit bounds the work when the tolerance cannot be met.
         count.set(0);
-        let _ = adaptive(&jump, 0.0, 1.0, &[], 0.0, 50);
+        let _ = adaptive(&jump, 0.0, 1.0, &[], f64::INFINITY, 0.0, 50);
         assert!(count.get() <= 15 * (2 * 50), "{} evaluations", count.get());
     }
 
@@ -275,7 +305,7 @@ mod tests {
         for width in [1e-4, 1e-6] {
             let needle = |x: f64| m::exp(-((x - c) / width).powi(2));
             let exact = width * PI.sqrt();
-            let s = adaptive(&needle, 0.0, 1.0, &[c], 1e-12, MAX_PIECES);
+            let s = adaptive(&needle, 0.0, 1.0, &[c], f64::INFINITY, 1e-12, MAX_PIECES);
             assert!(
                 (s - exact).abs() < 1e-6 * exact,
                 "width {width}: {s} vs {exact}"
@@ -287,14 +317,14 @@ mod tests {
             count.set(count.get() + 1);
             m::exp(-((x - c) / 0.3).powi(2))
         };
-        let _ = adaptive(&smooth, 0.0, 1.0, &[c], 1e-3, MAX_PIECES);
+        let _ = adaptive(&smooth, 0.0, 1.0, &[c], f64::INFINITY, 1e-3, MAX_PIECES);
         assert!(count.get() <= 2 * 15 + 5, "{} evaluations", count.get());
         count.set(0);
         let jump = |x: f64| {
             count.set(count.get() + 1);
             if x < c { 0.0 } else { 1.0 }
         };
-        let s = adaptive(&jump, 0.0, 1.0, &[c], 1e-3, MAX_PIECES);
+        let s = adaptive(&jump, 0.0, 1.0, &[c], f64::INFINITY, 1e-3, MAX_PIECES);
         // Constant on both pieces: exact, with no grading and no bisection.
         assert_eq!(s, 1.0 - c);
         assert!(count.get() <= 2 * 15 + 5, "{} evaluations", count.get());

@@ -96,7 +96,7 @@ impl Validation {
             .iter()
             .map(|h| h.as_dvec3())
             .collect();
-        let hints = Hints::of_model(&peaks);
+        let hints = Hints::of_model(&peaks).with_step(brdf.step_width());
         Ok(Self::integrated(
             &|w: Vec3| f64::from(brdf.eval_luminance(wi, w)),
             hints,
@@ -123,7 +123,8 @@ impl Validation {
     /// there (each with its axis planes x = h.x and y = h.y), and `hints.ridges` the planes
     /// n·w = c a lobe narrow along one axis lies along when that axis is not the frame's
     /// (an anisotropic BSDF whose tangent is rotated about the normal). Both the masses and
-    /// the sampler's own cell probabilities are cut there.
+    /// the sampler's own cell probabilities are cut there. `hints.step`: for a tabulated BSDF
+    /// read by nearest bin, its bins' angular width (see [`DensityHints::step`]).
     pub fn of_fcos_with(
         fcos: impl Fn(Vec3) -> f64 + Sync,
         hints: &DensityHints,
@@ -132,7 +133,9 @@ impl Validation {
     ) -> Result<Self, ValidateError> {
         grid.check()?;
         check_tolerance(tol)?;
-        let hints = Hints::of_model(&hints.peaks).with(&[], &hints.ridges);
+        let hints = Hints::of_model(&hints.peaks)
+            .with(&[], &hints.ridges)
+            .with_step(hints.step);
         // Per unit projected area: f·cos dω = f dA.
         let per_area = |w: Vec3| {
             if w.z > 0.0 {
@@ -203,7 +206,10 @@ impl Validation {
         pdf: &(dyn Fn(Vec3) -> f64 + Sync),
         hints: &DensityHints,
     ) -> Vec<f64> {
-        let all = self.hints.with(&hints.peaks, &hints.ridges);
+        let all = self
+            .hints
+            .with(&hints.peaks, &hints.ridges)
+            .with_step(hints.step);
         let total: f64 = self.mass.iter().sum();
         self.grid
             .integrate_all(self.tol / total.max(1e-300), &all, &|w: Vec3| {

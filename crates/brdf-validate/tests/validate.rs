@@ -542,6 +542,7 @@ fn a_needle_along_a_turned_axis_passes_when_its_plane_is_named() {
             normal: turn * glam::DVec3::X,
             offset: -f64::from(wi_m.x),
         }],
+        step: None,
     };
     let with = check_with(&sampler, fcos, &hints, &settings).unwrap();
     println!("{with}");

@@ -240,6 +240,9 @@ impl Brdf for Adjoint<'_> {
     fn integration_tolerance(&self) -> f64 {
         self.0.integration_tolerance()
     }
+    fn step_width(&self) -> Option<f64> {
+        self.0.step_width()
+    }
     fn symmetry(&self) -> Symmetry {
         Symmetry {
             reciprocal: false,

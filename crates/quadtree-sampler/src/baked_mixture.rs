@@ -255,7 +255,12 @@ impl BakedSampler {
         let (tables, _) = self.tables_for(role);
         let mut comps = [Component::NONE; 4];
         let n = self.components(tables, given, &mut comps);
-        let mut hints = DensityHints::default();
+        // Its densities follow the model's f (rejection) or are constant on the trees'
+        // leaves (warp): a staircase where the model is one.
+        let mut hints = DensityHints {
+            step: self.brdf.step_width(),
+            ..DensityHints::default()
+        };
         for c in &comps[..n] {
             let s = &tables.slices[c.slice];
             for h in self.brdf.peak_hints(lift_incident(s.wi)).as_slice() {

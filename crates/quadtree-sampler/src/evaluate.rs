@@ -126,7 +126,8 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         };
         // The model's hints, for wi lifted to the grazing floor as its evaluation lifts it.
         let lifted = brdf_core::geometry::lift_incident(wi);
-        let domain = Domain::new(config.map, brdf.crease_cosine(lifted));
+        let domain =
+            Domain::new(config.map, brdf.crease_cosine(lifted)).with_step(brdf.step_width());
         let hints = brdf
             .peak_hints(lifted)
             .as_slice()
@@ -180,7 +181,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         );
         ctx.tol_floor = ctx.tolerance() * 1e-2 * estimate.abs();
         ctx.estimate = estimate;
-        ctx.spend((1 + cell.applications(tol, 6)) * ctx.per_application);
+        ctx.spend((1 + cell.applications(ctx.domain, &root, tol, 6)) * ctx.per_application);
         (ctx, cell)
     }
 
@@ -270,7 +271,7 @@ impl<'a, B: Brdf + ?Sized> Context<'a, B> {
         .max(0.0);
         // The node's integration as if nothing were memoised (so the count, and the budget's
         // verdict, do not depend on the cache).
-        *spent += (1 + cell.applications(tol, depth)) * self.per_application;
+        *spent += (1 + cell.applications(self.domain, rect, tol, depth)) * self.per_application;
         Integrated::Inside { v1, peak, cell }
     }
 

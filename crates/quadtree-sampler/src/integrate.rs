@@ -149,6 +149,11 @@ pub(crate) struct Domain {
     pub map: DiskMap,
     /// r_c ∈ (0, 1); `None` without a crease.
     pub crease: Option<f64>,
+    /// The widest cell (side, in square units) whose refinement may stop where its two
+    /// levels agree: the integrand's [`brdf_core::Brdf::step_width`] (a square cell of side
+    /// s spans at least s radians of directions), ∞ for a continuous integrand. A wider
+    /// cell of a staircase is refined further, agreement or not (see [`refine_cells`]).
+    pub trusted_side: f64,
 }
 
 impl Domain {
@@ -159,13 +164,39 @@ impl Domain {
             .filter(|c| *c > 0.0 && *c < 1.0)
             .map(|c| m::sqrt((1.0 - c) * (1.0 + c)))
             .filter(|r| *r > 0.0 && *r < 1.0);
-        Self { map, crease }
+        Self {
+            map,
+            crease,
+            trusted_side: f64::INFINITY,
+        }
+    }
+
+    /// Whether agreement may stop the refinement of the cell `rect`: always for a continuous
+    /// integrand; for a staircase only in a cell no wider than its steps (in a wider one,
+    /// holding many steps, two levels can agree by chance while both are off).
+    #[inline]
+    pub fn trusts(&self, rect: &Rect) -> bool {
+        rect.max.x - rect.min.x <= self.trusted_side
+    }
+
+    /// This domain for an integrand that is a staircase of steps `step` wide (radians; see
+    /// [`brdf_core::usable_step_width`]), or continuous (`None`).
+    #[must_use]
+    pub fn with_step(self, step: Option<f64>) -> Self {
+        Self {
+            trusted_side: brdf_core::usable_step_width(step).unwrap_or(f64::INFINITY),
+            ..self
+        }
     }
 }
 
 impl From<DiskMap> for Domain {
     fn from(map: DiskMap) -> Self {
-        Self { map, crease: None }
+        Self {
+            map,
+            crease: None,
+            trusted_side: f64::INFINITY,
+        }
     }
 }
 
@@ -430,19 +461,21 @@ impl Cell {
     }
 
     /// The rule applications [`refine_cells`] with this `tol` and `depth` visits below this
-    /// cell, memoised or not: the work of a plain adaptive integration, which depends only on
-    /// the values (not on what a cache kept). Call it on a cell `refine_cells` just refined.
-    pub fn applications(&self, tol: f64, depth: u32) -> u64 {
+    /// cell (of square `rect` in domain `dom`), memoised or not: the work of a plain adaptive
+    /// integration, which depends only on the values (not on what a cache kept). Call it on a
+    /// cell `refine_cells` just refined.
+    pub fn applications(&self, dom: Domain, rect: &Rect, tol: f64, depth: u32) -> u64 {
         let Some(q) = &self.quads else {
             return 0;
         };
         let fine: f64 = q.iter().map(|c| c.value).sum();
-        if depth == 0 || (fine - self.value).abs() <= tol {
+        if depth == 0 || ((fine - self.value).abs() <= tol && dom.trusts(rect)) {
             return 4;
         }
         4 + q
             .iter()
-            .map(|c| c.applications(0.5 * tol, depth - 1))
+            .zip(rect.quadrants())
+            .map(|(c, r)| c.applications(dom, &r, 0.5 * tol, depth - 1))
             .sum::<u64>()
     }
 
@@ -483,7 +516,10 @@ pub(crate) fn join<A: Send, B: Send>(
 }
 
 /// [`refine`] over remembered cells: computes only the applications `cell` does not hold yet
-/// (and keeps them in it). Same value and peak as [`refine`] from `cell.value`. The top
+/// (and keeps them in it). Same value and peak as [`refine`] from `cell.value`. A cell stops
+/// where one application and its four quadrants' agree to `tol` and the domain trusts that
+/// agreement there ([`Domain::trusts`]: a staircase's cells must first be as narrow as its
+/// steps), or at `depth` 0; each quadrant refines to half the tolerance. The top
 /// `par_levels` levels of the recursion run their quadrants in parallel (feature `rayon`);
 /// the result does not depend on it.
 #[allow(clippy::too_many_arguments)]
@@ -516,7 +552,7 @@ pub(crate) fn refine_cells(
         peak.merge(&c.peak);
     }
     let fine: f64 = cells.iter().map(|c| c.value).sum();
-    if depth == 0 || (fine - coarse).abs() <= tol {
+    if depth == 0 || ((fine - coarse).abs() <= tol && dom.trusts(rect)) {
         return fine;
     }
     let next = par_levels.saturating_sub(1);
@@ -602,7 +638,7 @@ mod tests {
         let quads = rect.quadrants();
         let parts = quads.map(|q| integrate_in(dom, &q, rule, f, peak));
         let fine: f64 = parts.iter().sum();
-        if depth == 0 || (fine - coarse).abs() <= tol {
+        if depth == 0 || ((fine - coarse).abs() <= tol && dom.trusts(rect)) {
             return fine;
         }
         quads

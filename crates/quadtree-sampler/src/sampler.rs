@@ -96,6 +96,11 @@ pub struct DensityHints {
     pub peaks: alloc::vec::Vec<DVec3>,
     /// Planes.
     pub ridges: alloc::vec::Vec<Ridge>,
+    /// For a density that is a staircase (it follows a table read by nearest bin), the
+    /// angular width of its steps in radians, as [`brdf_core::Brdf::step_width`] declares
+    /// it: an integrator of the density cuts its ranges to pieces about this narrow before
+    /// it trusts an error estimate. `None` for a continuous density.
+    pub step: Option<f64>,
 }
 
 impl DensityHints {
@@ -105,6 +110,7 @@ impl DensityHints {
         Self {
             peaks: peaks.iter().map(|h| h.as_dvec3()).collect(),
             ridges: alloc::vec::Vec::new(),
+            step: None,
         }
     }
 }

@@ -46,6 +46,11 @@ pub const MERL_SCALE: [f64; 3] = [1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0];
 /// linear lookup is continuous and converges at any tolerance (0.3–0.8 s at 10⁻⁶).
 pub const NEAREST_INTEGRATION_TOLERANCE: f64 = 1e-4;
 
+/// [`Brdf::step_width`] of the nearest-bin lookup: 1°, the width of its θd and φd bins (and
+/// of its θh bins near θh = 22.5°; they are narrower toward the mirror direction, where a
+/// tree's nodes are small anyway, and wider away from it).
+pub const NEAREST_STEP_WIDTH: f64 = core::f64::consts::PI / 180.0;
+
 /// How f_r is read from the bins.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum MerlLookup {
@@ -541,6 +546,13 @@ impl Brdf for Merl {
         match self.lookup {
             MerlLookup::Nearest => NEAREST_INTEGRATION_TOLERANCE,
             MerlLookup::Linear => 0.0,
+        }
+    }
+
+    fn step_width(&self) -> Option<f64> {
+        match self.lookup {
+            MerlLookup::Nearest => Some(NEAREST_STEP_WIDTH),
+            MerlLookup::Linear => None,
         }
     }
 
