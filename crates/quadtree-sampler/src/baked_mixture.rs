@@ -255,8 +255,8 @@ impl BakedSampler {
         let (tables, _) = self.tables_for(role);
         let mut comps = [Component::NONE; 4];
         let n = self.components(tables, given, &mut comps);
-        // Its densities follow the model's f (rejection) or are constant on the trees'
-        // leaves (warp): a staircase where the model is one.
+        // In rejection mode its densities follow the model's f: a staircase where the model
+        // is one. (The warp's are constant on the trees' leaves: cut finer, no harm done.)
         let mut hints = DensityHints {
             step: self.brdf.step_width(),
             ..DensityHints::default()
