@@ -111,5 +111,7 @@ pub use sampler::{
     uniform_f64, weight_luminance,
 };
 pub use table::{DEFAULT_TABLE_RES, TableSampler};
-pub use tree::{LEAF, Node, Quadtree, RETRY_TOLERANCE, TreeStats, albedo_of_volume};
+pub use tree::{
+    LAST_RETRY_TOLERANCE, LEAF, Node, Quadtree, RETRY_TOLERANCE, TreeStats, albedo_of_volume,
+};
 pub use warp::{DEFAULT_MIX, WarpSampler};
