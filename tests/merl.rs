@@ -292,6 +292,12 @@ fn sharp(name: &str) -> TempFile {
     file(name, "blinn-phong", &["n=1000", "kd=0"], |_| {})
 }
 
+/// Ward αx = 0.1, αy = 0.3, tabulated (an isotropic format of an anisotropic lobe: what the
+/// grazing tests need is a bright, sharp staircase toward the horizon).
+fn anisotropic(name: &str) -> TempFile {
+    file(name, "ward", &["alpha_x=0.1", "alpha_y=0.3"], |_| {})
+}
+
 /// Like real data: 3 % multiplicative noise on every bin (a fixed seed), and every bin with
 /// θd beyond 85° "not measured" (negative in the file): the benches' measured set.
 fn measured(name: &str) -> TempFile {
@@ -439,12 +445,7 @@ fn a_staircase_tree_is_integrated_to_its_tolerance_at_grazing() {
     use brdf_sampling::glam::Vec3;
     use brdf_sampling::quadtree_sampler::{BuildConfig, QuadtreeSampler};
     use brdf_sampling::validate::{CellGrid, Validation};
-    let (_dir, path) = file(
-        "grazing.binary",
-        "ward",
-        &["alpha_x=0.1", "alpha_y=0.3"],
-        |_| {},
-    );
+    let (_dir, path) = anisotropic("grazing.binary");
     let fp = file_param(&path);
     for (interp, step) in [
         ("nearest", Some(merl::NEAREST_STEP_WIDTH)),
@@ -487,12 +488,7 @@ fn a_staircase_tree_is_integrated_to_its_tolerance_at_grazing() {
 /// grid with the new one).
 #[test]
 fn a_baked_table_passes_its_own_pdf_near_grazing() {
-    let (_dir, path) = file(
-        "baked-grazing.binary",
-        "ward",
-        &["alpha_x=0.1", "alpha_y=0.3"],
-        |_| {},
-    );
+    let (_dir, path) = anisotropic("baked-grazing.binary");
     let fp = file_param(&path);
     let out = scratch();
     let bake = out.path().join("w.bake");

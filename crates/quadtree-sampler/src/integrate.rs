@@ -192,11 +192,7 @@ impl Domain {
 
 impl From<DiskMap> for Domain {
     fn from(map: DiskMap) -> Self {
-        Self {
-            map,
-            crease: None,
-            trusted_side: f64::INFINITY,
-        }
+        Self::new(map, None)
     }
 }
 

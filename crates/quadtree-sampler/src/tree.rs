@@ -343,10 +343,8 @@ impl Quadtree {
     /// stops is built again to [`RETRY_TOLERANCE`], then [`LAST_RETRY_TOLERANCE`] (each where
     /// it asked for less, while the budget still stops it), and the first complete tree is
     /// kept, or else the first attempt's result ([`Quadtree::integration_tolerance`] says
-    /// which tolerance a tree has). This
-    /// is the build's own
-    /// layout, with everything each node's evaluation found; samplers use its
-    /// [`crate::PackedTree`].
+    /// which tolerance a tree has). This is the build's own layout, with everything each
+    /// node's evaluation found; samplers use its [`crate::PackedTree`].
     pub fn new<B: Brdf + ?Sized>(
         brdf: &B,
         wi: Vec3,

@@ -1154,11 +1154,12 @@ fn a_build_the_evaluation_budget_stops_is_retried_looser() {
         parallel,
         ..BuildConfig::default()
     };
-    let looser = Quadtree::new(&*b, wi, cfg(1 << 28, RETRY_TOLERANCE, false)).unwrap();
-    assert!(!looser.budget_exhausted());
-    let last = Quadtree::new(&*b, wi, cfg(1 << 28, LAST_RETRY_TOLERANCE, false)).unwrap();
-    assert!(!last.budget_exhausted());
-    let (mut retried, mut last_retried) = (0, 0);
+    // Each retry's tolerance, its complete tree, and how many budgets ended there.
+    let mut retries = [RETRY_TOLERANCE, LAST_RETRY_TOLERANCE].map(|tolerance| {
+        let tree = Quadtree::new(&*b, wi, cfg(1 << 28, tolerance, false)).unwrap();
+        assert!(!tree.budget_exhausted());
+        (tolerance, tree, 0)
+    });
     for k in 56..80u32 {
         // Budgets 2^(k/4): 2^14 to 2^19.75.
         let budget = (2f64.powf(f64::from(k) / 4.0)) as u64;
@@ -1171,34 +1172,27 @@ fn a_build_the_evaluation_budget_stops_is_retried_looser() {
                     "budget {budget}: serial != parallel"
                 );
                 assert_eq!(s.integration_tolerance(), p.integration_tolerance());
-                if s.integration_tolerance() == RETRY_TOLERANCE {
-                    assert!(
-                        !s.budget_exhausted(),
-                        "budget {budget}: kept an exhausted retry"
-                    );
-                    assert!(
-                        node_bits(s) == node_bits(&looser),
-                        "budget {budget}: not the 1e-4 tree"
-                    );
-                    retried += 1;
-                } else if s.integration_tolerance() == LAST_RETRY_TOLERANCE {
-                    assert!(
-                        !s.budget_exhausted(),
-                        "budget {budget}: kept an exhausted last retry"
-                    );
-                    assert!(
-                        node_bits(s) == node_bits(&last),
-                        "budget {budget}: not the 1e-3 tree"
-                    );
-                    last_retried += 1;
-                } else {
-                    assert_eq!(s.integration_tolerance(), 1e-6);
+                let tolerance = s.integration_tolerance();
+                match retries.iter_mut().find(|r| r.0 == tolerance) {
+                    Some((_, tree, count)) => {
+                        assert!(
+                            !s.budget_exhausted(),
+                            "budget {budget}: kept an exhausted retry to {tolerance:e}"
+                        );
+                        assert!(
+                            node_bits(s) == node_bits(tree),
+                            "budget {budget}: not the complete {tolerance:e} tree"
+                        );
+                        *count += 1;
+                    }
+                    None => assert_eq!(tolerance, 1e-6),
                 }
             }
             (Err(_), Err(_)) => {}
             _ => panic!("budget {budget}: serial and parallel differ in success"),
         }
     }
+    let [retried, last_retried] = retries.map(|r| r.2);
     println!("{retried} budgets retried to 1e-4, {last_retried} to 1e-3");
     assert!(
         retried > 0 && last_retried > 0,

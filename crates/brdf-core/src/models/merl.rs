@@ -47,7 +47,7 @@ pub const MERL_SCALE: [f64; 3] = [1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0];
 pub const NEAREST_INTEGRATION_TOLERANCE: f64 = 1e-4;
 
 /// [`Brdf::step_width`] of the nearest-bin lookup: 1°, the width of its θd and φd bins (and
-/// of its θh bins near θh = 22.5°; they are narrower toward the mirror direction, where a
+/// of its θh bins near θh = 22°; they are narrower toward the mirror direction, where a
 /// tree's nodes are small anyway, and wider away from it).
 pub const NEAREST_STEP_WIDTH: f64 = core::f64::consts::PI / 180.0;
 
