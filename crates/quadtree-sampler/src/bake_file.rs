@@ -7,7 +7,7 @@
 //! | 8 | magic `BRDFBAKE` |
 //! | 4 | format version ([`BAKE_FORMAT_VERSION`]) |
 //! | 8 | payload length n |
-//! | n | payload: the model name, its parameters as `name=value`, the bake configuration, the grid's φ domain, per tree its wi, volume and both layouts' nodes, and per transport direction the grid cells a rejection-mode query answers with its nearest tree, encoded with `postcard` (LEB128 integers, little-endian floats) |
+//! | n | payload: the model name, its parameters as `name=value`, the bake configuration, the grid's φ domain, per tree its wi, volume, both layouts' nodes and the warp's shaped leaves, and per transport direction the grid cells a rejection-mode query answers with its nearest tree, encoded with `postcard` (LEB128 integers, little-endian floats) |
 //! | 4 | CRC-32 (IEEE) of everything before it |
 //!
 //! Reading checks, in order: the magic, the version, the length against the file's size
@@ -42,14 +42,16 @@ pub const BAKE_MAGIC: [u8; 8] = *b"BRDFBAKE";
 /// and its children may use the polar chart on concentric trees too, and a square or polar
 /// leaf may carry a fine height shape (its five further levels in the leaf's third data
 /// word). Version 6: per transport direction, the grid cells a rejection-mode query answers
-/// with its nearest tree (measured at the bake). Files of version 5 are still read
-/// ([`OLDEST_READ_VERSION`]): they hold no such cells, and their samplers blend every cell,
-/// as they did when they were written. A file of any other version is a typed error
-/// (SPEC §7): bake it again.
-pub const BAKE_FORMAT_VERSION: u32 = 6;
+/// with its nearest tree (measured at the bake). Version 7: per tree, the warp's leaves that
+/// spread their shares by a fitted shape (node index and the shape's two words, as a packed
+/// leaf keeps them). Files of versions 5 and 6 are still read ([`OLDEST_READ_VERSION`]):
+/// version 5 holds no nearest-tree cells, and its samplers blend every cell; neither holds
+/// shapes, and their warps spread every leaf uniformly — each as it did when it was
+/// written. A file of any other version is a typed error (SPEC §7): bake it again.
+pub const BAKE_FORMAT_VERSION: u32 = 7;
 
 /// The oldest format version read: version 5, whose records are version 6's without the
-/// nearest-tree cells.
+/// nearest-tree cells (and version 6's are version 7's without the warp's shapes).
 pub const OLDEST_READ_VERSION: u32 = 5;
 
 const HEADER: usize = 8 + 4 + 8;
@@ -177,6 +179,18 @@ struct ConfigRecord {
     defensive: f64,
 }
 
+/// One tree as versions 5 and 6 store it.
+#[derive(Serialize, Deserialize)]
+struct SliceRecordV6 {
+    wi: [f32; 3],
+    volume: f64,
+    budget_exhausted: bool,
+    packed: Vec<[u32; 4]>,
+    warp: Vec<(u32, f32)>,
+}
+
+/// One tree: version 6's record and the warp's shaped leaves (node index, the shape's
+/// corner word and fine word).
 #[derive(Serialize, Deserialize)]
 struct SliceRecord {
     wi: [f32; 3],
@@ -184,6 +198,21 @@ struct SliceRecord {
     budget_exhausted: bool,
     packed: Vec<[u32; 4]>,
     warp: Vec<(u32, f32)>,
+    warp_shapes: Vec<(u32, u32, u32)>,
+}
+
+impl SliceRecordV6 {
+    /// The version 7 record it stands for: every warp leaf flat.
+    fn upgrade(self) -> SliceRecord {
+        SliceRecord {
+            wi: self.wi,
+            volume: self.volume,
+            budget_exhausted: self.budget_exhausted,
+            packed: self.packed,
+            warp: self.warp,
+            warp_shapes: Vec::new(),
+        }
+    }
 }
 
 /// The [`Nearest`] cells of one transport direction.
@@ -195,19 +224,37 @@ struct NearestRecord {
 
 /// The trees of one transport direction and their (rejection mode's) nearest-tree cells.
 #[derive(Serialize, Deserialize)]
-struct TablesRecord {
-    slices: Vec<SliceRecord>,
+struct TablesRecord<S = SliceRecord> {
+    slices: Vec<S>,
     nearest: NearestRecord,
 }
 
 #[derive(Serialize, Deserialize)]
-struct Record {
+struct Record<S = SliceRecord> {
     model: String,
     params: Vec<String>,
     config: ConfigRecord,
     domain: u8,
-    forward: TablesRecord,
-    adjoint: Option<TablesRecord>,
+    forward: TablesRecord<S>,
+    adjoint: Option<TablesRecord<S>>,
+}
+
+impl Record<SliceRecordV6> {
+    /// The version 7 record a version 6 one stands for: every warp leaf flat.
+    fn upgrade(self) -> Record {
+        let tables = |t: TablesRecord<SliceRecordV6>| TablesRecord {
+            slices: t.slices.into_iter().map(SliceRecordV6::upgrade).collect(),
+            nearest: t.nearest,
+        };
+        Record {
+            model: self.model,
+            params: self.params,
+            config: self.config,
+            domain: self.domain,
+            forward: tables(self.forward),
+            adjoint: self.adjoint.map(tables),
+        }
+    }
 }
 
 /// A version 5 file's record: the trees alone.
@@ -217,14 +264,14 @@ struct RecordV5 {
     params: Vec<String>,
     config: ConfigRecord,
     domain: u8,
-    forward: Vec<SliceRecord>,
-    adjoint: Option<Vec<SliceRecord>>,
+    forward: Vec<SliceRecordV6>,
+    adjoint: Option<Vec<SliceRecordV6>>,
 }
 
 impl RecordV5 {
     /// The version 6 record it stands for: every cell blends (no nearest-tree cells, which
     /// [`Nearest::fits`] accepts as none measured).
-    fn upgrade(self) -> Record {
+    fn upgrade(self) -> Record<SliceRecordV6> {
         let tables = |slices| TablesRecord {
             slices,
             nearest: NearestRecord {
@@ -336,6 +383,11 @@ fn slice_record(s: &Slice) -> SliceRecord {
         budget_exhausted: s.tree.stats().budget_exhausted,
         packed: s.tree.raw_nodes(),
         warp: s.warp.shares().collect(),
+        warp_shapes: s
+            .warp
+            .shaped()
+            .map(|(i, shape)| (i, shape.to_bits(), shape.fine_bits()))
+            .collect(),
     }
 }
 
@@ -387,7 +439,18 @@ fn slices_from(
         }
         let tree = PackedTree::from_raw(&r.packed, map, r.volume, r.budget_exhausted)
             .map_err(|fault| BakeFileError::Tree { index, fault })?;
+        let shapes = r
+            .warp_shapes
+            .iter()
+            .map(|&(i, bits, fine)| {
+                crate::proposal::Shape::from_bits(bits, fine)
+                    .map(|s| (i, s))
+                    .ok_or("a warp shape whose words no shape writes")
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|fault| BakeFileError::Tree { index, fault })?;
         let warp = WarpTable::from_raw(r.warp, map)
+            .and_then(|w| w.with_shapes(&shapes))
             .map_err(|fault| BakeFileError::Tree { index, fault })?;
         if warp.len() != tree.nodes().len()
             || tree
@@ -502,12 +565,15 @@ impl BakedSampler {
             return Err(BakeFileError::Checksum { stored, computed });
         }
         let payload = &bytes[HEADER..body];
-        let record: Record = if word(bytes, 8, 4)? as u32 == OLDEST_READ_VERSION {
-            postcard::from_bytes::<RecordV5>(payload)
+        let record: Record = match word(bytes, 8, 4)? as u32 {
+            5 => postcard::from_bytes::<RecordV5>(payload)
                 .map_err(|_| BakeFileError::Decode)?
                 .upgrade()
-        } else {
-            postcard::from_bytes(payload).map_err(|_| BakeFileError::Decode)?
+                .upgrade(),
+            6 => postcard::from_bytes::<Record<SliceRecordV6>>(payload)
+                .map_err(|_| BakeFileError::Decode)?
+                .upgrade(),
+            _ => postcard::from_bytes(payload).map_err(|_| BakeFileError::Decode)?,
         };
         let info = registry::find(&record.model).map_err(BakeFileError::Model)?;
         let params = info
@@ -669,6 +735,130 @@ mod tests {
     use super::*;
     use crate::BakeConfig;
 
+    /// A tree's stored warp shapes: (node, corner word, fine word).
+    type StoredShapes = Vec<(u32, u32, u32)>;
+
+    /// A tree as versions 5 and 6 wrote it (its warp's shapes dropped).
+    fn slice_record_v6(s: &Slice) -> SliceRecordV6 {
+        let r = slice_record(s);
+        SliceRecordV6 {
+            wi: r.wi,
+            volume: r.volume,
+            budget_exhausted: r.budget_exhausted,
+            packed: r.packed,
+            warp: r.warp,
+        }
+    }
+
+    /// `baked` with every warp leaf flat, as a file without shapes reads.
+    fn flat_warps(baked: &BakedSampler) -> BakedSampler {
+        let mut flat = BakedSampler::from_bytes(&baked.to_bytes()).unwrap();
+        for s in flat.forward.slices.iter_mut() {
+            s.warp = WarpTable::from_raw(s.warp.shares().collect(), s.map).unwrap();
+        }
+        flat
+    }
+
+    /// A version 6 file (no warp shapes, as this library wrote them before) still reads:
+    /// the same trees, nearest-tree cells and rejection sampler, every warp leaf flat; and
+    /// the shapes this bake fitted change the warp's pdf (else they were not stored).
+    #[test]
+    fn a_version_6_file_reads_with_flat_warps() {
+        let phong = registry::create("phong", ["n=1000", "kd=0"]).unwrap();
+        let config = BakeConfig {
+            theta_steps: 8,
+            ..BakeConfig::default()
+        };
+        let baked = BakedSampler::new(phong.into(), config).unwrap();
+        let (forward, _) = baked.tables();
+        assert!(forward.slices.iter().any(|s| s.warp.shaped().count() > 0));
+        let record = Record {
+            model: baked.brdf().name().to_string(),
+            params: param_strings(&**baked.brdf()),
+            config: ConfigRecord::of(baked.config()),
+            domain: domain_code(baked.grid().domain()),
+            forward: TablesRecord {
+                slices: forward.slices.iter().map(slice_record_v6).collect(),
+                nearest: NearestRecord {
+                    theta: forward.nearest.theta.clone(),
+                    phi: forward.nearest.phi.clone(),
+                },
+            },
+            adjoint: None,
+        };
+        let v6 = frame(6, &postcard::to_allocvec(&record).unwrap());
+        let old = BakedSampler::from_bytes(&v6).unwrap();
+        assert_eq!(old.forward, flat_warps(&baked).forward);
+        let back = BakedSampler::from_bytes(&baked.to_bytes()).unwrap();
+        assert_eq!(back.forward, baked.forward);
+        let wi = glam::Vec3::new(0.45, 0.1, 0.8).normalize();
+        let (old, new) = (
+            old.with_mode(crate::BakedMode::Warp),
+            back.with_mode(crate::BakedMode::Warp),
+        );
+        let differ = (0..200)
+            .filter(|&k| {
+                let a = f32::from(k as u8) * 0.031;
+                let wo =
+                    glam::Vec3::new(-0.4 + 0.1 * a.cos(), -0.1 + 0.1 * a.sin(), 0.9).normalize();
+                old.pdf(wi, wo).unwrap() != new.pdf(wi, wo).unwrap()
+            })
+            .count();
+        assert!(differ > 100, "{differ} of 200 pdfs differ");
+    }
+
+    /// Stored shapes that no fit writes are typed errors: on a branch, twice, out of order,
+    /// flat, or with words no shape has.
+    #[test]
+    fn malformed_warp_shapes_are_refused() {
+        let phong = registry::create("phong", ["n=1000", "kd=0"]).unwrap();
+        let config = BakeConfig {
+            theta_steps: 4,
+            ..BakeConfig::default()
+        };
+        let baked = BakedSampler::new(phong.into(), config).unwrap();
+        let edit = |f: &dyn Fn(&mut StoredShapes, &Slice)| {
+            let (forward, _) = baked.tables();
+            let mut record = Record {
+                model: baked.brdf().name().to_string(),
+                params: param_strings(&**baked.brdf()),
+                config: ConfigRecord::of(baked.config()),
+                domain: domain_code(baked.grid().domain()),
+                forward: tables_record(forward),
+                adjoint: None,
+            };
+            let k = forward
+                .slices
+                .iter()
+                .position(|s| s.warp.shaped().count() > 1)
+                .unwrap();
+            f(
+                &mut record.forward.slices[k].warp_shapes,
+                &forward.slices[k],
+            );
+            BakedSampler::from_bytes(&frame(
+                BAKE_FORMAT_VERSION,
+                &postcard::to_allocvec(&record).unwrap(),
+            ))
+        };
+        assert!(edit(&|_, _| {}).is_ok());
+        let refused = |r: Result<BakedSampler, BakeFileError>| {
+            assert!(matches!(r, Err(BakeFileError::Tree { .. })), "{r:?}");
+        };
+        refused(edit(&|v, _| v[0].0 = 0));
+        refused(edit(&|v, _| v.swap(0, 1)));
+        refused(edit(&|v, _| {
+            let first = v[0];
+            v.insert(0, first);
+        }));
+        refused(edit(&|v, _| {
+            v[0].1 = 0;
+            v[0].2 = 0;
+        }));
+        refused(edit(&|v, _| v[0].2 = 7));
+        refused(edit(&|v, s| v.push((s.warp.len() as u32, v[0].1, v[0].2))));
+    }
+
     /// A version 5 file (the trees without nearest-tree cells, as this library wrote them
     /// before) still reads: the same trees, and a sampler that blends every cell as it did,
     /// bit for bit the pdf of this bake with its cells cleared.
@@ -686,15 +876,16 @@ mod tests {
             params: param_strings(&**baked.brdf()),
             config: ConfigRecord::of(baked.config()),
             domain: domain_code(baked.grid().domain()),
-            forward: forward.slices.iter().map(slice_record).collect(),
+            forward: forward.slices.iter().map(slice_record_v6).collect(),
             adjoint: None,
         };
         let v5 = frame(5, &postcard::to_allocvec(&record).unwrap());
         let old = BakedSampler::from_bytes(&v5).unwrap();
-        assert_eq!(old.forward.slices, baked.forward.slices);
+        let flat = flat_warps(&baked);
+        assert_eq!(old.forward.slices, flat.forward.slices);
         assert!(old.forward.nearest.theta.is_empty());
         assert!(baked.nearest_cells(crate::BakedMode::Rejection).0 > 0);
-        let mut blended = BakedSampler::from_bytes(&baked.to_bytes()).unwrap();
+        let mut blended = BakedSampler::from_bytes(&flat.to_bytes()).unwrap();
         blended.blend_everywhere_for_testing();
         let wi = glam::Vec3::new(0.45, 0.1, 0.8).normalize();
         let role = crate::Role::Importance;

@@ -192,7 +192,11 @@ pub(crate) struct Slice {
 impl Slice {
     fn build(table: &dyn Brdf, wi: Vec3, config: BuildConfig) -> Result<Self, BuildError> {
         let q = Quadtree::from_unit(table, wi, config)?;
-        Ok(Self::new(wi, PackedTree::new(&q), WarpTable::new(&q)))
+        let mut warp = WarpTable::new(&q);
+        warp.fit_shapes(q.map(), |w| {
+            f64::from(brdf_core::geometry::luminance(table.eval(wi, w.as_vec3())))
+        });
+        Ok(Self::new(wi, PackedTree::new(&q), warp))
     }
 
     /// A slice from its parts (a bake's, or a file's), with its pdf scales.

@@ -69,6 +69,7 @@ mod baked;
 mod baked_mixture;
 mod baked_nearest;
 mod baked_views;
+mod bilinear;
 mod bound;
 pub mod chart;
 pub mod colormap;

@@ -227,6 +227,45 @@ impl Shape {
         DVec2::new(x, halves(u.y, row(0), row(1), row(2)))
     }
 
+    /// The inverse of [`Shape::warp`]: the uniform point it maps to box coordinates `t`
+    /// (the marginal CDF of S in x at t.x, the conditional CDF in y there at t.y).
+    #[must_use]
+    pub fn invert(&self, t: DVec2) -> DVec2 {
+        // The CDF of the density ∝ (1 − x)·a + x·b on [0, 1].
+        fn linear(x: f64, a: f64, b: f64) -> f64 {
+            ((2.0 * a * x + (b - a) * x * x) / (a + b)).clamp(0.0, 1.0)
+        }
+        fn halves(x: f64, a: f64, b: f64, c: f64) -> f64 {
+            let (low, high) = (a + b, b + c);
+            let split = low / (low + high);
+            if x < 0.5 {
+                split * linear(2.0 * x, a, b)
+            } else {
+                split + (1.0 - split) * linear(2.0 * x - 1.0, b, c)
+            }
+        }
+        let t = t.clamp(DVec2::ZERO, DVec2::ONE);
+        if !self.fine {
+            let [c00, c10, c01, c11] = self.corners();
+            let ux = linear(t.x, c00 + c01, c10 + c11);
+            let bottom = c00 + (c10 - c00) * t.x;
+            let top = c01 + (c11 - c01) * t.x;
+            return DVec2::new(ux, linear(t.y, bottom, top));
+        }
+        let l = |at: usize| f64::from(self.grid[at]) / 63.0;
+        let column = |i: usize| l(i) + 2.0 * l(3 + i) + l(6 + i);
+        let ux = halves(t.x, column(0), column(1), column(2));
+        let row = |j: usize| {
+            let (a, b, c) = (l(3 * j), l(3 * j + 1), l(3 * j + 2));
+            if t.x < 0.5 {
+                a + (b - a) * 2.0 * t.x
+            } else {
+                b + (c - b) * (2.0 * t.x - 1.0)
+            }
+        };
+        DVec2::new(ux, halves(t.y, row(0), row(1), row(2)))
+    }
+
     /// Draws box coordinates t ∈ [0, 1)² with density S(t)/mean(S), as [`Shape::warp`] does,
     /// without its square roots and divisions: `pick` chooses a bilinear piece's corner k
     /// with probability level_k / Σ levels (over the four pieces of a fine shape, each
@@ -1239,6 +1278,33 @@ mod tests {
             wrong > 10.0,
             "corner draws pass as the peak: z = {wrong:.2}"
         );
+    }
+
+    /// [`Shape::invert`] undoes [`Shape::warp`], coarse and fine, and both are monotone.
+    #[test]
+    fn the_inverse_undoes_the_warp() {
+        let shapes = [
+            Shape::from_levels([4, 63, 30, 12]).unwrap(),
+            Shape::from_grid([1, 20, 1, 20, 63, 20, 1, 20, 1]).unwrap(),
+            Shape::from_grid([63, 12, 40, 3, 30, 1, 22, 50, 9]).unwrap(),
+            Shape::FLAT,
+        ];
+        for s in shapes {
+            let mut last = -1.0;
+            for k in 0..=1000 {
+                let u = DVec2::new(k as f64 / 1001.0, (k * 37 % 1001) as f64 / 1001.0);
+                let t = s.warp(u);
+                if k > 0 {
+                    assert!(t.x >= last, "{s:?}: x not monotone at {u}");
+                }
+                last = t.x;
+                let back = s.invert(t);
+                assert!(
+                    (back - u).abs().max_element() < 1e-9,
+                    "{s:?}: {u} → {t} → {back}"
+                );
+            }
+        }
     }
 
     /// A prepared shape's value is [`Shape::value`] to the bit (the trials' height bound

@@ -29,18 +29,27 @@
 //! a 2^g × 2^g grid over u, the deepest node that every u in it passes through, with the
 //! intervals the choices down to it leave — the very state the descent from the root reaches
 //! there, so the warp is bit-identical with or without it, a few dependent levels shorter. At
-//! the leaf, `u` maps affinely into its square (into (r², φ) of a disk sector). The probability of
+//! the leaf, `u` maps into its square by the leaf's proxy shape (affinely for a flat leaf; see
+//! `bilinear`) or into (r², φ) of a disk sector. The probability of
 //! reaching a leaf is the product of the split probabilities up to the cuts' rounding,
 //! 2⁻⁶³ of the whole interval per cut (relative 10⁻¹⁰ for a node reached with probability
 //! 10⁻⁹), and that product over the leaf's area is the stored density. The look-up
 //! ([`WarpTable::density`]) reads the tree's at most 30 levels of midpoints as the bits of
-//! the point's fixed-point coordinates, so it is loads alone. Both return the leaf's one
-//! stored number, so the density a sample carries and the density of its point asked for
-//! later are the same value ([`WarpLeaf::contains`] says when a point is still in the leaf).
+//! the point's fixed-point coordinates, so it is loads alone. Both find the leaf's one
+//! stored number (times its shape at the point, [`WarpLeaf::density_at`]), so the density a
+//! sample carries and the density of its point asked for later are the same value
+//! ([`WarpLeaf::contains`] says when a point is still in the leaf).
+//!
+//! ## Shapes
+//! A leaf may spread its share by a fitted [`Shape`] rather than uniformly (chosen at the
+//! bake, where it predicts f better: see `bilinear`); the shapes are stored beside the
+//! shares, one [`Shape`] a node ([`Shape::FLAT`] for branches, flat leaves and disk sectors).
 
+use crate::bilinear::factor;
 use crate::chart::{Rect, child_column, child_index, child_row};
+use crate::proposal::Shape;
 use alloc::vec::Vec;
-use glam::DVec2;
+use glam::{DVec2, DVec3};
 
 /// Marks a leaf in the stored form ([`WarpTable::shares`], [`WarpTable::from_raw`]).
 pub(crate) const WARP_LEAF: u32 = u32::MAX;
@@ -109,15 +118,23 @@ struct WarpNode {
     rows: [u32; 2],
 }
 
-/// The leaf a warp reached: its square and density per unit square area.
+/// The leaf a warp reached: its square, mean density per unit square area and shape.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct WarpLeaf {
     pub(crate) index: usize,
     pub(crate) rect: Rect,
     pub(crate) density: f64,
+    pub(crate) shape: Shape,
 }
 
 impl WarpLeaf {
+    /// The proxy's density per unit square area at `p` of this leaf: the one expression
+    /// [`WarpTable::density`] ends in.
+    #[inline]
+    pub(crate) fn density_at(&self, p: DVec2) -> f64 {
+        shaped_density(self.density, &self.shape, &self.rect, p)
+    }
+
     /// Whether square point `p` is in this leaf's half-open square, the squares
     /// [`WarpTable::density`]'s descent separates (its cuts are `p ≥ mid`; squares, corners
     /// and midpoints are dyadic, so the two agree exactly).
@@ -150,6 +167,18 @@ pub(crate) struct WarpTable {
     jump: Vec<u32>,
     /// Each node's share of the tree's volume: the stored form.
     shares: Vec<f32>,
+    /// Each node's proxy shape ([`Shape::FLAT`] but for shaped leaves): stored too.
+    shapes: Vec<Shape>,
+}
+
+/// A leaf's density per unit square area at `p`: its mean `density` times its shape there.
+#[inline(always)]
+fn shaped_density(density: f64, shape: &Shape, rect: &Rect, p: DVec2) -> f64 {
+    if shape.is_flat() {
+        density
+    } else {
+        density * factor(shape, (p - rect.min) / rect.side())
+    }
 }
 
 impl WarpTable {
@@ -244,6 +273,56 @@ impl WarpTable {
             + core::mem::size_of_val(self.shares.as_slice())
             + core::mem::size_of_val(self.jump.as_slice())
             + core::mem::size_of_val(self.guide.as_slice())
+            + core::mem::size_of_val(self.shapes.as_slice())
+    }
+
+    /// Whether leaf `i` is a disk sector (spread over its part of the disk, never shaped).
+    fn is_sector(&self, i: usize) -> bool {
+        self.disk && self.nodes[i].link - LEAF_TAG <= 1
+    }
+
+    /// The square of leaf `i`.
+    fn leaf_rect(&self, i: usize) -> Rect {
+        let n = self.nodes[i];
+        Rect::dyadic((n.link - LEAF_TAG) as u8, n.rows[0], n.rows[1])
+    }
+
+    /// Fits every leaf's proxy shape ([`crate::bilinear::fit_leaf`]) from `f`, the tree's
+    /// integrand at a local direction, over `map` (the tree's). Leaves without volume and
+    /// disk sectors stay flat.
+    pub(crate) fn fit_shapes(&mut self, map: brdf_core::DiskMap, f: impl Fn(DVec3) -> f64) {
+        for i in 0..self.nodes.len() {
+            if self.is_leaf(i) && !self.is_sector(i) && self.nodes[i].data != 0 {
+                self.shapes[i] = crate::bilinear::fit_leaf(map, &self.leaf_rect(i), &f);
+            }
+        }
+    }
+
+    /// The shaped leaves and their shapes, in node order: the stored form of the shapes.
+    pub(crate) fn shaped(&self) -> impl Iterator<Item = (u32, Shape)> + '_ {
+        self.shapes
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| !s.is_flat())
+            .map(|(i, &s)| (i as u32, s))
+    }
+
+    /// The table with the stored shapes of [`WarpTable::shaped`]: each a leaf's, not a disk
+    /// sector's, not flat, in increasing node order.
+    pub(crate) fn with_shapes(mut self, shaped: &[(u32, Shape)]) -> Result<Self, &'static str> {
+        let mut last = None;
+        for &(i, shape) in shaped {
+            let k = i as usize;
+            if k >= self.nodes.len() || last.is_some_and(|l| l >= i) {
+                return Err("a warp shape out of node order or range");
+            }
+            if !self.is_leaf(k) || self.is_sector(k) || shape.is_flat() {
+                return Err("a warp shape on a node that cannot take one");
+            }
+            self.shapes[k] = shape;
+            last = Some(i);
+        }
+        Ok(self)
     }
 
     /// The derived fields from the shares of a checked shape (parents before children).
@@ -314,6 +393,7 @@ impl WarpTable {
             guide_bits -= 1;
         }
         let (guide, guide_bits) = guide_table(&nodes, guide_bits);
+        let shapes = alloc::vec![Shape::FLAT; nodes.len()];
         Self {
             nodes,
             guide,
@@ -322,6 +402,7 @@ impl WarpTable {
             disk,
             jump,
             shares,
+            shapes,
         }
     }
 
@@ -337,13 +418,30 @@ impl WarpTable {
         let (ux, uy) = fixed_uniforms(u);
         let shift = 63 - self.guide_bits;
         let square = ((uy >> shift) << self.guide_bits) | (ux >> shift);
-        self.descend(ux, uy, self.guide[square as usize])
+        self.descend(ux, uy, self.guide[square as usize], true)
+    }
+
+    /// [`WarpTable::warp`] with every leaf flat (the table as a file without shapes reads):
+    /// the bake's nearest-tree measurement draws its points with it, so that what rejection
+    /// mode does is the same with or without the warp's shapes.
+    pub(crate) fn warp_flat(&self, u: DVec2) -> Option<(DVec2, WarpLeaf)> {
+        let (ux, uy) = fixed_uniforms(u);
+        let shift = 63 - self.guide_bits;
+        let square = ((uy >> shift) << self.guide_bits) | (ux >> shift);
+        self.descend(ux, uy, self.guide[square as usize], false)
     }
 
     /// The warp of fixed-point uniforms from `start`, a node every (ux, uy) passing through
-    /// it reaches with the intervals `start` holds.
+    /// it reaches with the intervals `start` holds; `shaped`: whether leaves take their
+    /// shapes (else all are flat).
     #[inline(always)]
-    fn descend(&self, ux: u64, uy: u64, start: GuideEntry) -> Option<(DVec2, WarpLeaf)> {
+    fn descend(
+        &self,
+        ux: u64,
+        uy: u64,
+        start: GuideEntry,
+        shaped: bool,
+    ) -> Option<(DVec2, WarpLeaf)> {
         let GuideEntry {
             mut lx,
             mut ly,
@@ -363,15 +461,19 @@ impl WarpTable {
                 let rect = Rect::dyadic(depth as u8, n.rows[0], n.rows[1]);
                 let t = DVec2::new((ux - lx) as f64 / wx as f64, (uy - ly) as f64 / wy as f64)
                     .clamp(DVec2::ZERO, DVec2::splat(1.0 - f64::EPSILON));
+                let shape = if shaped { self.shapes[i] } else { Shape::FLAT };
                 let leaf = WarpLeaf {
                     index: i,
                     rect,
                     density,
+                    shape,
                 };
                 let p = if self.disk && depth <= 1 {
                     sector_point(&rect, t)
-                } else {
+                } else if shape.is_flat() {
                     rect.min + t * rect.side()
+                } else {
+                    rect.min + shape.warp(t) * rect.side()
                 };
                 return Some((p, leaf));
             }
@@ -395,6 +497,18 @@ impl WarpTable {
     /// scaling by a power of two), and the descent is loads alone.
     #[inline]
     pub(crate) fn density(&self, p: DVec2) -> f64 {
+        self.look_up(p, true)
+    }
+
+    /// [`WarpTable::density`] with every leaf flat: the density of
+    /// [`WarpTable::warp_flat`].
+    pub(crate) fn density_flat(&self, p: DVec2) -> f64 {
+        self.look_up(p, false)
+    }
+
+    /// The density at `p`, with the leaves' shapes where `shaped`.
+    #[inline(always)]
+    fn look_up(&self, p: DVec2, shaped: bool) -> f64 {
         if !(p.x >= -1.0 && p.x <= 1.0 && p.y >= -1.0 && p.y <= 1.0) {
             return 0.0;
         }
@@ -415,7 +529,12 @@ impl WarpTable {
         loop {
             let n = self.nodes[i];
             if is_leaf_link(n.link) {
-                return f64::from(f32::from_bits(n.data));
+                let density = f64::from(f32::from_bits(n.data));
+                let shape = &self.shapes[i];
+                if !shaped || shape.is_flat() {
+                    return density;
+                }
+                return shaped_density(density, shape, &self.leaf_rect(i), p);
             }
             bit -= 1;
             let col = (kx >> bit) & 1;
@@ -703,6 +822,71 @@ mod tests {
         }
     }
 
+    /// Shaped leaves: the density still integrates to 1, the look-up and the drawing leaf
+    /// agree on it to the bit, and the warp's points follow it cell by cell (stratified u:
+    /// a 16 × 16 grid of cells over the square, each against its own integral). A stored
+    /// shape on a branch, a disk sector, out of order or flat is refused.
+    #[test]
+    fn shaped_leaves_spread_their_shares_by_their_shapes() {
+        let coarse = Shape::from_levels([4, 63, 20, 40]).unwrap();
+        let fine = Shape::from_grid([5, 20, 5, 20, 63, 20, 5, 20, 9]).unwrap();
+        let t = table()
+            .with_shapes(&[(1, fine), (5, coarse), (8, fine)])
+            .unwrap();
+        assert_eq!(t.shaped().count(), 3);
+        let cells = 16;
+        let sub = 16;
+        let mut want = alloc::vec![0.0; cells * cells];
+        let mut sum = 0.0;
+        for a in 0..cells * sub {
+            for b in 0..cells * sub {
+                let h = 2.0 / (cells * sub) as f64;
+                let p = DVec2::new(-1.0 + (a as f64 + 0.5) * h, -1.0 + (b as f64 + 0.5) * h);
+                let d = t.density(p) * h * h;
+                sum += d;
+                want[(b / sub) * cells + a / sub] += d;
+            }
+        }
+        assert!((sum - 1.0).abs() < 1e-4, "{sum}");
+        let n = 600;
+        let mut got = alloc::vec![0usize; cells * cells];
+        for a in 0..n {
+            for b in 0..n {
+                let u = DVec2::new((a as f64 + 0.5) / n as f64, (b as f64 + 0.5) / n as f64);
+                let (p, leaf) = t.warp(u).unwrap();
+                assert!(leaf.contains(p), "{p} outside {leaf:?}");
+                assert_eq!(leaf.density_at(p).to_bits(), t.density(p).to_bits());
+                let cell = |x: f64| (((x + 1.0) * 0.5 * cells as f64) as usize).min(cells - 1);
+                got[cell(p.y) * cells + cell(p.x)] += 1;
+            }
+        }
+        for (k, (&g, &w)) in got.iter().zip(&want).enumerate() {
+            let g = g as f64 / (n * n) as f64;
+            assert!((g - w).abs() < 2e-4 + 0.02 * w, "cell {k}: {g} vs {w}");
+        }
+        // Flat leaves would not pass: the shapes moved points.
+        let flat = table();
+        let moved = (0..100)
+            .filter(|&k| {
+                let u = DVec2::new(0.05 + 0.009 * k as f64, 0.3);
+                flat.warp(u).unwrap().0 != t.warp(u).unwrap().0
+            })
+            .count();
+        assert!(moved > 50, "{moved}");
+        for bad in [
+            &[(0, coarse)][..],
+            &[(4, coarse)],
+            &[(5, coarse), (1, fine)],
+            &[(1, Shape::FLAT)],
+            &[(9, coarse)],
+        ] {
+            assert!(table().with_shapes(bad).is_err(), "{bad:?}");
+        }
+        let sector =
+            WarpTable::from_raw(alloc::vec![(WARP_LEAF, 1.0)], DiskMap::Orthographic).unwrap();
+        assert!(sector.with_shapes(&[(0, coarse)]).is_err());
+    }
+
     /// On a leaf's edges and corners, `contains` holds exactly where the look-up finds that
     /// leaf: the sampler's shortcut (the drawing leaf's density for a point still in it) and
     /// the look-up agree to the bit.
@@ -749,7 +933,7 @@ mod tests {
         );
         let from_root = |u: DVec2| {
             let (ux, uy) = fixed_uniforms(u);
-            t.descend(ux, uy, GuideEntry::ROOT)
+            t.descend(ux, uy, GuideEntry::ROOT, true)
         };
         let side = 1u32 << t.guide_bits;
         let mut us = Vec::new();

@@ -263,16 +263,17 @@ fn a_lobe_between_the_roots_integration_points_is_found() {
     }
 }
 
+/// An evaluation budget that stops Cook–Torrance m = 0.1's target-1.1 tree at 45° part-way
+/// (13 nodes; 32 000 completes its 349) even at [`LAST_RETRY_TOLERANCE`], where no retry
+/// follows.
+#[cfg(feature = "rayon")]
+const PART_WAY_BUDGET: u64 = 30_000;
+
 // Only with the `rayon` feature: without it a "parallel" build is the serial one and this
 // would pass whatever the parallel code did. `cargo test --workspace` turns it on (the
 // viewer and brdf-validate's tests ask for it); alone: `cargo test -p quadtree-sampler
 // --features rayon`.
 #[cfg(feature = "rayon")]
-/// An evaluation budget that stops Cook–Torrance m = 0.1's target-1.1 tree at 45° part-way
-/// (13 nodes; 32 000 completes its 349) even at [`LAST_RETRY_TOLERANCE`], where no retry
-/// follows.
-const PART_WAY_BUDGET: u64 = 30_000;
-
 #[test]
 fn serial_and_parallel_builds_are_bit_identical() {
     for &(name, params) in &[
@@ -793,7 +794,8 @@ mod warp {
     }
 
     /// `pdf()` at the f32 directions of nine points of every leaf, its centre and eight an
-    /// eighth of its side from its edges, is that leaf's density: the direction is mapped
+    /// eighth of its side from its edges, is that leaf's density (its mean times its shape
+    /// where the direction maps back to): the direction is mapped
     /// back to the square in f64, which moves a point by 6.7·10⁻⁸ at most (the f32 map moved
     /// them by up to 2.4·10⁻⁷ near the rim, where these leaves are 1.9·10⁻⁶ wide). Cook–Torrance m = 0.001 at 89.9° puts
     /// 95 % of its mass within 10⁻⁵ of the square's edge, where the f32 map (r = √(x² + y²)
@@ -815,9 +817,12 @@ mod warp {
             let j = f64::from(DiskMap::Concentric.square_area_per_projected_solid_angle());
             let mut wrong = 0;
             let mut points = 0;
-            for (_, n) in w.tree().leaves() {
+            let mut shaped = 0;
+            for (i, n) in w.tree().leaves() {
                 let r = n.rect();
                 let q = (1.0 - mix) * n.v1 / volume + mix * r.area() / 4.0;
+                let shape = w.leaf_shape(i);
+                shaped += usize::from(!shape.is_flat());
                 for k in 0..9 {
                     let t = glam::DVec2::new(AT[k % 3], AT[k / 3]);
                     let Some(d) = DiskMap::Concentric.square_to_direction_f64(r.min + t * r.side())
@@ -829,7 +834,10 @@ mod warp {
                         continue;
                     }
                     points += 1;
-                    let want = q / r.area() * j * f64::from(wo.z);
+                    let back = DiskMap::Concentric
+                        .direction_to_square_f64(brdf_core::geometry::normalize_f64(wo.as_dvec3()));
+                    let at = (back - r.min) / r.side();
+                    let want = q / r.area() * shape.value(at) / shape.mean() * j * f64::from(wo.z);
                     let got = f64::from(w.pdf(wo));
                     if (got - want).abs() > 1e-5 * want {
                         wrong += 1;
@@ -837,6 +845,7 @@ mod warp {
                 }
             }
             assert_eq!(wrong, 0, "{name}: {wrong} of {points} points found wrongly");
+            assert!(shaped > 0, "{name}: no leaf shaped");
         }
     }
 
