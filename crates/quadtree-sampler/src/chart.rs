@@ -76,8 +76,24 @@ impl Rect {
     #[inline]
     #[must_use]
     pub fn dyadic(depth: u8, column: u32, row: u32) -> Self {
-        let s = 2.0 / f64::from(1u32 << depth);
+        // 2^(1 − depth) from its exponent bits: the quotient 2/2^depth exactly, without a
+        // division on a look-up's path.
+        let s = f64::from_bits((1024 - u64::from(depth.min(30))) << 52);
         Self::square(f64::from(column) * s - 1.0, f64::from(row) * s - 1.0, s)
+    }
+
+    /// 1/side of a dyadic square (a power of two, so exact) from its exponent bits: a
+    /// point's coordinates in the square, (p − min)·this, are the quotient (p − min)/side to
+    /// the bit, without a division.
+    #[inline]
+    #[must_use]
+    pub fn inverse_side(&self) -> f64 {
+        let side = self.side();
+        debug_assert!(
+            side.to_bits() & ((1 << 52) - 1) == 0,
+            "not a power of two: {side}"
+        );
+        f64::from_bits((2046 - (side.to_bits() >> 52)) << 52)
     }
 
     /// The side of a square (its width).

@@ -235,7 +235,7 @@ impl<B: Brdf> WarpSampler<B> {
             return self.density[leaf];
         }
         let r = self.tree.nodes()[leaf].rect();
-        self.density[leaf] * factor(shape, (p - r.min) / r.side())
+        self.density[leaf] * factor(shape, (p - r.min) * r.inverse_side())
     }
 
     /// The direction for uniforms `u` ∈ [0,1)², with its pdf per unit solid angle, f and the

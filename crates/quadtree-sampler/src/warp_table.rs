@@ -17,8 +17,10 @@
 //!   square's area, or a disk sector's (per unit square area; a sector's density holds in
 //!   the disk, the only points a direction maps to);
 //! - `rows` — of a branch: the probability of the lower row within the left and within the
-//!   right column (fixed point); of a leaf: its column and row at its depth (so its square
-//!   is known where the warp ends, and the warp carries no position on its way down).
+//!   right column (fixed point); of a leaf: its proxy [`Shape`]'s two words (0, 0 for a
+//!   flat leaf), read in the same load as its density. A leaf's column and row are not
+//!   stored: the warp carries them down (two shifts a level, off its critical path), the
+//!   look-up reads them from the point's bits.
 //!
 //! ## Warp and look-up
 //! The warp keeps the interval of each coordinate of u that the choices so far leave, in
@@ -42,8 +44,8 @@
 //!
 //! ## Shapes
 //! A leaf may spread its share by a fitted [`Shape`] rather than uniformly (chosen at the
-//! bake, where it predicts f better: see `bilinear`); the shapes are stored beside the
-//! shares, one [`Shape`] a node ([`Shape::FLAT`] for branches, flat leaves and disk sectors).
+//! bake, where it predicts f better: see `bilinear`); a file stores the shaped leaves beside
+//! the shares ([`WarpTable::shaped`]).
 
 use crate::bilinear::factor;
 use crate::chart::{Rect, child_column, child_index, child_row};
@@ -64,8 +66,9 @@ fn is_leaf_link(link: u32) -> bool {
     link >= LEAF_TAG
 }
 
-/// Where the warp starts for one square of its guide table: a node and the fixed-point
-/// intervals of u's coordinates that reach it (see the module doc).
+/// Where the warp starts for one square of its guide table: a node, its column and row at
+/// its depth, and the fixed-point intervals of u's coordinates that reach it (see the module
+/// doc).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
 struct GuideEntry {
@@ -74,6 +77,8 @@ struct GuideEntry {
     wx: u64,
     wy: u64,
     node: u32,
+    column: u32,
+    row: u32,
 }
 
 impl GuideEntry {
@@ -84,6 +89,8 @@ impl GuideEntry {
         wx: 1 << 63,
         wy: 1 << 63,
         node: 0,
+        column: 0,
+        row: 0,
     };
 }
 
@@ -114,7 +121,7 @@ struct WarpNode {
     /// area (f32 bits).
     data: u32,
     /// A branch's probabilities of the lower row in its left and right column (× 2³²); a
-    /// leaf's column and row at its depth.
+    /// leaf's shape words ([`Shape::to_bits`], [`Shape::fine_bits`]; 0, 0 when flat).
     rows: [u32; 2],
 }
 
@@ -167,8 +174,6 @@ pub(crate) struct WarpTable {
     jump: Vec<u32>,
     /// Each node's share of the tree's volume: the stored form.
     shares: Vec<f32>,
-    /// Each node's proxy shape ([`Shape::FLAT`] but for shaped leaves): stored too.
-    shapes: Vec<Shape>,
 }
 
 /// A leaf's density per unit square area at `p`: its mean `density` times its shape there.
@@ -177,7 +182,7 @@ fn shaped_density(density: f64, shape: &Shape, rect: &Rect, p: DVec2) -> f64 {
     if shape.is_flat() {
         density
     } else {
-        density * factor(shape, (p - rect.min) / rect.side())
+        density * factor(shape, (p - rect.min) * rect.inverse_side())
     }
 }
 
@@ -273,7 +278,6 @@ impl WarpTable {
             + core::mem::size_of_val(self.shares.as_slice())
             + core::mem::size_of_val(self.jump.as_slice())
             + core::mem::size_of_val(self.guide.as_slice())
-            + core::mem::size_of_val(self.shapes.as_slice())
     }
 
     /// Whether leaf `i` is a disk sector (spread over its part of the disk, never shaped).
@@ -281,30 +285,56 @@ impl WarpTable {
         self.disk && self.nodes[i].link - LEAF_TAG <= 1
     }
 
-    /// The square of leaf `i`.
-    fn leaf_rect(&self, i: usize) -> Rect {
-        let n = self.nodes[i];
-        Rect::dyadic((n.link - LEAF_TAG) as u8, n.rows[0], n.rows[1])
+    /// Leaf `i`'s proxy shape.
+    #[inline(always)]
+    fn shape(&self, i: usize) -> Shape {
+        let [bits, fine] = self.nodes[i].rows;
+        Shape::from_checked_bits(bits, fine)
+    }
+
+    /// Sets leaf `i`'s proxy shape.
+    fn set_shape(&mut self, i: usize, shape: Shape) {
+        self.nodes[i].rows = [shape.to_bits(), shape.fine_bits()];
+    }
+
+    /// Each node's square (parents before children).
+    fn squares(&self) -> Vec<Rect> {
+        let mut cells = alloc::vec![(0u8, 0u32, 0u32); self.nodes.len()];
+        for i in 0..self.nodes.len() {
+            let link = self.nodes[i].link;
+            if is_leaf_link(link) {
+                continue;
+            }
+            let (depth, column, row) = cells[i];
+            for k in 0..4 {
+                let (x, y) = (child_column(k) as u32, child_row(k) as u32);
+                cells[link as usize + k] = (depth + 1, 2 * column + x, 2 * row + y);
+            }
+        }
+        cells
+            .into_iter()
+            .map(|(d, c, r)| Rect::dyadic(d, c, r))
+            .collect()
     }
 
     /// Fits every leaf's proxy shape ([`crate::bilinear::fit_leaf`]) from `f`, the tree's
     /// integrand at a local direction, over `map` (the tree's). Leaves without volume and
     /// disk sectors stay flat.
     pub(crate) fn fit_shapes(&mut self, map: brdf_core::DiskMap, f: impl Fn(DVec3) -> f64) {
-        for i in 0..self.nodes.len() {
+        let squares = self.squares();
+        for (i, square) in squares.iter().enumerate() {
             if self.is_leaf(i) && !self.is_sector(i) && self.nodes[i].data != 0 {
-                self.shapes[i] = crate::bilinear::fit_leaf(map, &self.leaf_rect(i), &f);
+                let shape = crate::bilinear::fit_leaf(map, square, &f);
+                self.set_shape(i, shape);
             }
         }
     }
 
     /// The shaped leaves and their shapes, in node order: the stored form of the shapes.
     pub(crate) fn shaped(&self) -> impl Iterator<Item = (u32, Shape)> + '_ {
-        self.shapes
-            .iter()
-            .enumerate()
-            .filter(|(_, s)| !s.is_flat())
-            .map(|(i, &s)| (i as u32, s))
+        (0..self.nodes.len())
+            .filter(|&i| self.is_leaf(i) && self.nodes[i].rows != [0, 0])
+            .map(|i| (i as u32, self.shape(i)))
     }
 
     /// The table with the stored shapes of [`WarpTable::shaped`]: each a leaf's, not a disk
@@ -319,7 +349,7 @@ impl WarpTable {
             if !self.is_leaf(k) || self.is_sector(k) || shape.is_flat() {
                 return Err("a warp shape on a node that cannot take one");
             }
-            self.shapes[k] = shape;
+            self.set_shape(k, shape);
             last = Some(i);
         }
         Ok(self)
@@ -340,13 +370,13 @@ impl WarpTable {
         // warp uses (so a leaf's density is what the warp's choices give it, to f32).
         let mut prob = alloc::vec![0.0f64; nodes.len()];
         let mut area = alloc::vec![4.0f64; nodes.len()];
-        // Each node's cell: depth, column and row.
-        let mut cell = alloc::vec![(0u32, 0u32, 0u32); nodes.len()];
+        // Each node's depth.
+        let mut depths = alloc::vec![0u32; nodes.len()];
         prob[0] = if shares[0] > 0.0 { 1.0 } else { 0.0 };
         for i in 0..nodes.len() {
             let link = nodes[i].link;
             if link == WARP_LEAF {
-                let (depth, column, row) = cell[i];
+                let depth = depths[i];
                 // A disk sector spreads its share over its part of the disk, π/4 of its
                 // square.
                 let area = if disk && depth <= 1 {
@@ -357,7 +387,7 @@ impl WarpTable {
                 nodes[i] = WarpNode {
                     link: LEAF_TAG + depth,
                     data: ((prob[i] / area) as f32).to_bits(),
-                    rows: [column, row],
+                    rows: [0, 0],
                 };
                 continue;
             }
@@ -381,8 +411,7 @@ impl WarpTable {
                     0.0
                 };
                 area[c + k] = area[i] * 0.25;
-                let (depth, column, row) = cell[i];
-                cell[c + k] = (depth + 1, 2 * column + x as u32, 2 * row + y as u32);
+                depths[c + k] = depths[i] + 1;
             }
         }
         let (jump, jump_levels) = jump_table(&nodes);
@@ -393,7 +422,6 @@ impl WarpTable {
             guide_bits -= 1;
         }
         let (guide, guide_bits) = guide_table(&nodes, guide_bits);
-        let shapes = alloc::vec![Shape::FLAT; nodes.len()];
         Self {
             nodes,
             guide,
@@ -402,7 +430,6 @@ impl WarpTable {
             disk,
             jump,
             shares,
-            shapes,
         }
     }
 
@@ -448,6 +475,8 @@ impl WarpTable {
             mut wx,
             mut wy,
             node,
+            mut column,
+            mut row,
         } = start;
         let mut i = node as usize;
         loop {
@@ -458,10 +487,14 @@ impl WarpTable {
                     return None;
                 }
                 let depth = n.link - LEAF_TAG;
-                let rect = Rect::dyadic(depth as u8, n.rows[0], n.rows[1]);
+                let rect = Rect::dyadic(depth as u8, column, row);
                 let t = DVec2::new((ux - lx) as f64 / wx as f64, (uy - ly) as f64 / wy as f64)
                     .clamp(DVec2::ZERO, DVec2::splat(1.0 - f64::EPSILON));
-                let shape = if shaped { self.shapes[i] } else { Shape::FLAT };
+                let shape = if shaped {
+                    Shape::from_checked_bits(n.rows[0], n.rows[1])
+                } else {
+                    Shape::FLAT
+                };
                 let leaf = WarpLeaf {
                     index: i,
                     rect,
@@ -483,9 +516,11 @@ impl WarpTable {
             // Both rows' cuts are formed before the column is known.
             let cuts = [cut(wy, n.rows[0]), cut(wy, n.rows[1])];
             let cy = cuts[col as usize];
-            let row = u64::from(uy - ly >= cy);
-            narrow(&mut ly, &mut wy, cy, row);
-            i = n.link as usize + child_index(col as usize, row as usize);
+            let up = u64::from(uy - ly >= cy);
+            narrow(&mut ly, &mut wy, cy, up);
+            column = 2 * column + col as u32;
+            row = 2 * row + up as u32;
+            i = n.link as usize + child_index(col as usize, up as usize);
         }
     }
 
@@ -530,11 +565,15 @@ impl WarpTable {
             let n = self.nodes[i];
             if is_leaf_link(n.link) {
                 let density = f64::from(f32::from_bits(n.data));
-                let shape = &self.shapes[i];
-                if !shaped || shape.is_flat() {
+                if !shaped || n.rows == [0, 0] {
                     return density;
                 }
-                return shaped_density(density, shape, &self.leaf_rect(i), p);
+                // The leaf's column and row are the top `depth` bits of the point's.
+                let depth = n.link - LEAF_TAG;
+                let drop = MAX_DEPTH - depth;
+                let rect = Rect::dyadic(depth as u8, kx >> drop, ky >> drop);
+                let shape = Shape::from_checked_bits(n.rows[0], n.rows[1]);
+                return shaped_density(density, &shape, &rect, p);
             }
             bit -= 1;
             let col = (kx >> bit) & 1;
@@ -653,6 +692,8 @@ fn guide_table(nodes: &[WarpNode], bits: u32) -> (Vec<GuideEntry>, u32) {
                 narrow(&mut e.lx, &mut e.wx, cx, col);
                 narrow(&mut e.ly, &mut e.wy, cy, row);
                 e.node = n.link + child_index(col as usize, row as usize) as u32;
+                e.column = 2 * e.column + col as u32;
+                e.row = 2 * e.row + row as u32;
             }
             guide.push(e);
         }
