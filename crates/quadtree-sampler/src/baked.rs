@@ -99,8 +99,9 @@ pub enum BakedMode {
     /// Rejection in the chosen leaf (exact ∝ Y(f_r)·cos θ per tree; an RNG draws the trials).
     #[default]
     Rejection,
-    /// The piecewise-constant proxy, a deterministic function of (uc, u). Each leaf's share
-    /// is spread over its whole square, so over the orthographic map (the default) the part
+    /// The trees' warp proxies, a deterministic function of (uc, u). Each leaf's share is
+    /// spread over its whole square (uniformly, or by the shape fitted to f there: see
+    /// `bilinear`), so over the orthographic map (the default) the part
     /// of a rim leaf outside the disk is lost — except the root's and its children's, which
     /// are spread over their parts of the disk (a diffuse lobe's one leaf is the disk:
     /// lambert, oren-nayar and strauss lose 0.01 %, where spreading over the square lost
@@ -109,9 +110,9 @@ pub enum BakedMode {
     /// cook-torrance up to 1 %, sharp lobes next to nothing. A bake over the concentric map
     /// (`BuildConfig::map`, `brdf bake --map concentric`) loses nothing (0.01 %), and its
     /// rejection mode wastes less under a sharp lobe too (phong n = 1000 about 1.03 against
-    /// 1.2, at half the bytes); its warp proxy is coarser where a lobe is sharp (phong
-    /// n = 1000's warp variance 1.5× the orthographic bake's in `brdf bench`, Cook–Torrance
-    /// m = 0.1's 0.7×).
+    /// 1.2); its warp proxy is coarser where a lobe is sharp (at the benches' wi, phong
+    /// n = 1000's warp variance is 1.6× the orthographic bake's, Cook–Torrance m = 0.1's and
+    /// Ward α = 0.05's 1.05× and 1.01×).
     Warp,
 }
 

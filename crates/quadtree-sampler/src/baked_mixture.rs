@@ -24,11 +24,12 @@
 //!   integrals, as for [`crate::QuadtreeSampler`]); `u` descends the tree, the rejection trials
 //!   draw from an RNG; one model evaluation per neighbour for the pdf (a sample's own
 //!   neighbour reuses its accepted trial's, made at the very point the pdf looks at);
-//! - **warp**: tree k's piecewise-constant proxy (each leaf's share of the volume spread
-//!   uniformly over its square), a deterministic function of (uc, u) — stratified and
-//!   low-discrepancy points stay stratified — and its pdf is a table look-up per neighbour,
-//!   without evaluating the model (the neighbour that drew a sample gives its leaf's density
-//!   without a look-up while the sample's direction maps back into that leaf).
+//! - **warp**: tree k's proxy (each leaf's share of the volume spread over its square,
+//!   uniformly or by the shape fitted to f there), a deterministic function of (uc, u) —
+//!   stratified and low-discrepancy points stay stratified — and its pdf is a table look-up
+//!   per neighbour, without evaluating the model (the neighbour that drew a sample reads its
+//!   leaf's density at the point without a look-up while the sample's direction maps back
+//!   into that leaf).
 
 use crate::bake_grid::{
     Nearest, PhiDomain, isotropic_to_local, rotation_arc, rotation_between_mirrors_xz,

@@ -25,10 +25,10 @@
 //!   grid's 31 cells (to θi ≈ 72°), ward α = 0.05 and cook-torrance m = 0.1 two (next to the
 //!   normal), diffuse parts none.
 //!
-//! Warp mode always blends: its proxies are piecewise constant on each tree's own leaves, so
-//! two neighbours' proxies differ by their layouts (pointwise ratios of 2–13 anywhere on the
-//! default grid), and blending two of them smooths those steps (off the grid, the blend's
-//! variance is below the single on-grid tree's).
+//! Warp mode always blends: its proxies step at each tree's own leaf edges, so two
+//! neighbours' proxies differ by their layouts (pointwise ratios of 2–13 anywhere on the
+//! default grid, measured with flat leaves), and blending two of them smooths those steps
+//! (off the grid, the blend's variance is below the single on-grid tree's).
 //!
 //! The χ² is ∫ (T − q)²/q + 1 − Q (Q: q's mass over the hemisphere, short of 1 where the
 //! rotation carries part of a tree below the horizon), an integrand that vanishes where the
