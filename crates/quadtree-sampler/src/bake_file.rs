@@ -189,15 +189,12 @@ struct SliceRecordV6 {
     warp: Vec<(u32, f32)>,
 }
 
-/// One tree: version 6's record and the warp's shaped leaves (node index, the shape's
-/// corner word and fine word).
+/// One tree: version 6's record, then the warp's shaped leaves (node index, the shape's
+/// corner word and fine word). postcard writes a struct as its fields in order, so this is
+/// version 6's fields followed by the shapes.
 #[derive(Serialize, Deserialize)]
 struct SliceRecord {
-    wi: [f32; 3],
-    volume: f64,
-    budget_exhausted: bool,
-    packed: Vec<[u32; 4]>,
-    warp: Vec<(u32, f32)>,
+    tree: SliceRecordV6,
     warp_shapes: Vec<(u32, u32, u32)>,
 }
 
@@ -205,11 +202,7 @@ impl SliceRecordV6 {
     /// The version 7 record it stands for: every warp leaf flat.
     fn upgrade(self) -> SliceRecord {
         SliceRecord {
-            wi: self.wi,
-            volume: self.volume,
-            budget_exhausted: self.budget_exhausted,
-            packed: self.packed,
-            warp: self.warp,
+            tree: self,
             warp_shapes: Vec::new(),
         }
     }
@@ -229,64 +222,60 @@ struct TablesRecord<S = SliceRecord> {
     nearest: NearestRecord,
 }
 
+/// A file's record; `T` is one transport direction's trees as the version stores them:
+/// [`TablesRecord`] (version 7), `TablesRecord<SliceRecordV6>` (version 6) or a plain
+/// `Vec<SliceRecordV6>` (version 5, [`RecordV5`]).
 #[derive(Serialize, Deserialize)]
-struct Record<S = SliceRecord> {
+struct Record<T = TablesRecord> {
     model: String,
     params: Vec<String>,
     config: ConfigRecord,
     domain: u8,
-    forward: TablesRecord<S>,
-    adjoint: Option<TablesRecord<S>>,
+    forward: T,
+    adjoint: Option<T>,
 }
 
-impl Record<SliceRecordV6> {
-    /// The version 7 record a version 6 one stands for: every warp leaf flat.
-    fn upgrade(self) -> Record {
-        let tables = |t: TablesRecord<SliceRecordV6>| TablesRecord {
-            slices: t.slices.into_iter().map(SliceRecordV6::upgrade).collect(),
-            nearest: t.nearest,
-        };
+impl<T> Record<T> {
+    /// The same record with each direction's trees mapped by `f`.
+    fn map<U>(self, f: impl Fn(T) -> U) -> Record<U> {
         Record {
             model: self.model,
             params: self.params,
             config: self.config,
             domain: self.domain,
-            forward: tables(self.forward),
-            adjoint: self.adjoint.map(tables),
+            forward: f(self.forward),
+            adjoint: self.adjoint.map(f),
         }
     }
 }
 
-/// A version 5 file's record: the trees alone.
-#[derive(Serialize, Deserialize)]
-struct RecordV5 {
-    model: String,
-    params: Vec<String>,
-    config: ConfigRecord,
-    domain: u8,
-    forward: Vec<SliceRecordV6>,
-    adjoint: Option<Vec<SliceRecordV6>>,
+/// A version 6 file's record: version 7's without the warp's shapes.
+type RecordV6 = Record<TablesRecord<SliceRecordV6>>;
+
+impl RecordV6 {
+    /// The version 7 record it stands for: every warp leaf flat.
+    fn upgrade(self) -> Record {
+        self.map(|t| TablesRecord {
+            slices: t.slices.into_iter().map(SliceRecordV6::upgrade).collect(),
+            nearest: t.nearest,
+        })
+    }
 }
+
+/// A version 5 file's record: the trees alone.
+type RecordV5 = Record<Vec<SliceRecordV6>>;
 
 impl RecordV5 {
     /// The version 6 record it stands for: every cell blends (no nearest-tree cells, which
     /// [`Nearest::fits`] accepts as none measured).
-    fn upgrade(self) -> Record<SliceRecordV6> {
-        let tables = |slices| TablesRecord {
+    fn upgrade(self) -> RecordV6 {
+        self.map(|slices| TablesRecord {
             slices,
             nearest: NearestRecord {
                 theta: Vec::new(),
                 phi: Vec::new(),
             },
-        };
-        Record {
-            model: self.model,
-            params: self.params,
-            config: self.config,
-            domain: self.domain,
-            forward: tables(self.forward),
-            adjoint: self.adjoint.map(tables),
-        }
+        })
     }
 }
 
@@ -378,11 +367,13 @@ impl ConfigRecord {
 
 fn slice_record(s: &Slice) -> SliceRecord {
     SliceRecord {
-        wi: s.wi.to_array(),
-        volume: s.tree.volume(),
-        budget_exhausted: s.tree.stats().budget_exhausted,
-        packed: s.tree.raw_nodes(),
-        warp: s.warp.shares().collect(),
+        tree: SliceRecordV6 {
+            wi: s.wi.to_array(),
+            volume: s.tree.volume(),
+            budget_exhausted: s.tree.stats().budget_exhausted,
+            packed: s.tree.raw_nodes(),
+            warp: s.warp.shares().collect(),
+        },
         warp_shapes: s
             .warp
             .shaped()
@@ -431,16 +422,19 @@ fn slices_from(
         return Err(BakeFileError::GridMismatch);
     }
     let mut slices = Vec::with_capacity(records.len());
-    for (k, r) in records.into_iter().enumerate() {
+    for (k, record) in records.into_iter().enumerate() {
         let index = first_index + k;
+        let SliceRecord {
+            tree: r,
+            warp_shapes,
+        } = record;
         let wi = Vec3::from_array(r.wi);
         if wi.to_array().map(f32::to_bits) != grid.direction(k).to_array().map(f32::to_bits) {
             return Err(BakeFileError::GridMismatch);
         }
         let tree = PackedTree::from_raw(&r.packed, map, r.volume, r.budget_exhausted)
             .map_err(|fault| BakeFileError::Tree { index, fault })?;
-        let shapes = r
-            .warp_shapes
+        let shapes = warp_shapes
             .iter()
             .map(|&(i, bits, fine)| {
                 crate::proposal::Shape::from_bits(bits, fine)
@@ -570,7 +564,7 @@ impl BakedSampler {
                 .map_err(|_| BakeFileError::Decode)?
                 .upgrade()
                 .upgrade(),
-            6 => postcard::from_bytes::<Record<SliceRecordV6>>(payload)
+            6 => postcard::from_bytes::<RecordV6>(payload)
                 .map_err(|_| BakeFileError::Decode)?
                 .upgrade(),
             _ => postcard::from_bytes(payload).map_err(|_| BakeFileError::Decode)?,
@@ -735,19 +729,22 @@ mod tests {
     use super::*;
     use crate::BakeConfig;
 
+    /// A phong bake of `params` on `theta_steps` rows.
+    fn phong_bake(params: &[&str], theta_steps: u16) -> BakedSampler {
+        let phong = registry::create("phong", params.iter().copied()).unwrap();
+        let config = BakeConfig {
+            theta_steps,
+            ..BakeConfig::default()
+        };
+        BakedSampler::new(phong.into(), config).unwrap()
+    }
+
     /// A tree's stored warp shapes: (node, corner word, fine word).
     type StoredShapes = Vec<(u32, u32, u32)>;
 
     /// A tree as versions 5 and 6 wrote it (its warp's shapes dropped).
     fn slice_record_v6(s: &Slice) -> SliceRecordV6 {
-        let r = slice_record(s);
-        SliceRecordV6 {
-            wi: r.wi,
-            volume: r.volume,
-            budget_exhausted: r.budget_exhausted,
-            packed: r.packed,
-            warp: r.warp,
-        }
+        slice_record(s).tree
     }
 
     /// `baked` with every warp leaf flat, as a file without shapes reads.
@@ -764,12 +761,7 @@ mod tests {
     /// the shapes this bake fitted change the warp's pdf (else they were not stored).
     #[test]
     fn a_version_6_file_reads_with_flat_warps() {
-        let phong = registry::create("phong", ["n=1000", "kd=0"]).unwrap();
-        let config = BakeConfig {
-            theta_steps: 8,
-            ..BakeConfig::default()
-        };
-        let baked = BakedSampler::new(phong.into(), config).unwrap();
+        let baked = phong_bake(&["n=1000", "kd=0"], 8);
         let (forward, _) = baked.tables();
         assert!(forward.slices.iter().any(|s| s.warp.shaped().count() > 0));
         let record = Record {
@@ -811,12 +803,7 @@ mod tests {
     /// flat, or with words no shape has.
     #[test]
     fn malformed_warp_shapes_are_refused() {
-        let phong = registry::create("phong", ["n=1000", "kd=0"]).unwrap();
-        let config = BakeConfig {
-            theta_steps: 4,
-            ..BakeConfig::default()
-        };
-        let baked = BakedSampler::new(phong.into(), config).unwrap();
+        let baked = phong_bake(&["n=1000", "kd=0"], 4);
         let edit = |f: &dyn Fn(&mut StoredShapes, &Slice)| {
             let (forward, _) = baked.tables();
             let mut record = Record {
@@ -864,12 +851,7 @@ mod tests {
     /// bit for bit the pdf of this bake with its cells cleared.
     #[test]
     fn a_version_5_file_reads_and_blends_everywhere() {
-        let phong = registry::create("phong", ["n=1000", "kd=0"]).unwrap();
-        let config = BakeConfig {
-            theta_steps: 8,
-            ..BakeConfig::default()
-        };
-        let baked = BakedSampler::new(phong.into(), config).unwrap();
+        let baked = phong_bake(&["n=1000", "kd=0"], 8);
         let (forward, _) = baked.tables();
         let record = RecordV5 {
             model: baked.brdf().name().to_string(),
@@ -906,12 +888,7 @@ mod tests {
     /// file as written reads back equal, cells included.
     #[test]
     fn nearest_cells_that_do_not_fit_the_grid_are_refused() {
-        let phong = registry::create("phong", ["n=100"]).unwrap();
-        let config = BakeConfig {
-            theta_steps: 4,
-            ..BakeConfig::default()
-        };
-        let baked = BakedSampler::new(phong.into(), config).unwrap();
+        let baked = phong_bake(&["n=100"], 4);
         let back = BakedSampler::from_bytes(&baked.to_bytes()).unwrap();
         assert_eq!(back.forward, baked.forward);
         let mut short = BakedSampler::from_bytes(&baked.to_bytes()).unwrap();
