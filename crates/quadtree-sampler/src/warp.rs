@@ -154,7 +154,7 @@ impl<B: Brdf> WarpSampler<B> {
 
     /// Node `i`'s proxy shape: how a leaf spreads its probability over its square
     /// ([`Shape::FLAT`]: uniformly; always flat for a branch). Its density at t ∈ [0, 1]² of
-    /// the leaf is the leaf's mean density times `value(t)/mean()`.
+    /// the leaf is the leaf's mean density times [`Shape::density`] at t.
     #[must_use]
     pub fn leaf_shape(&self, i: usize) -> Shape {
         self.shapes[i]

@@ -415,8 +415,8 @@ impl WarpTable {
             }
         }
         let (jump, jump_levels) = jump_table(&nodes);
-        // At most one guide entry (40 bytes) for every two nodes (20 bytes each with their
-        // shares): the guide never more than doubles what the tree itself holds.
+        // At most one guide entry (48 bytes) for every two nodes (20 bytes each with their
+        // shares): the guide holds at most 1.2× what the tree itself holds.
         let mut guide_bits = jump_levels.min(GUIDE_BITS);
         while guide_bits > 0 && 2 << (2 * guide_bits) > nodes.len() {
             guide_bits -= 1;
@@ -591,7 +591,7 @@ const MAX_DEPTH: u32 = 30;
 const JUMP_LEVELS: u32 = 4;
 
 /// The most bits of each coordinate of u the warp's guide table reads: 16 × 16 squares,
-/// 256 entries (10 KiB) a table at most, and never more entries than half the tree's nodes.
+/// 256 entries (12 KiB) a table at most, and never more entries than half the tree's nodes.
 /// With 16 × 16 squares everywhere, the default grid's sharp lobes start their warp 3.2–4.9
 /// levels down (phong n = 1000: 4.9 of the 6.8 levels its samples descend; cook-torrance
 /// m = 0.1: 3.5 of 5.0; ward α = 0.05: 3.2 of 4.6); with 8 × 8, 2.5–3.8 levels down, and an
