@@ -76,9 +76,9 @@ impl Rect {
     #[inline]
     #[must_use]
     pub fn dyadic(depth: u8, column: u32, row: u32) -> Self {
-        // 2^(1 − depth) from its exponent bits: the quotient 2/2^depth exactly, without a
-        // division on a look-up's path.
-        let s = f64::from_bits((1024 - u64::from(depth.min(30))) << 52);
+        // 2^(1 − depth) from its exponent bits (a normal number for every u8 depth): the
+        // quotient 2/2^depth exactly, without a division on a look-up's path.
+        let s = f64::from_bits((1024 - u64::from(depth)) << 52);
         Self::square(f64::from(column) * s - 1.0, f64::from(row) * s - 1.0, s)
     }
 
@@ -355,7 +355,8 @@ pub(crate) mod tests {
     }
 
     /// A node's square is exact at every depth the build allows (30): its children tile it
-    /// in the child order, and the last cell of a row ends at 1. (Squares kept as f32 corners,
+    /// in the child order, the last cell of a row ends at 1, and a point's coordinates in it
+    /// by [`Rect::inverse_side`] are the division's to the bit. (Squares kept as f32 corners,
     /// as nodes once were, lose their corners past depth 24.)
     #[test]
     fn dyadic_squares_are_exact_to_the_deepest_level() {
@@ -365,6 +366,16 @@ pub(crate) mod tests {
                 let r = Rect::dyadic(depth, column, row);
                 assert_eq!(r.side(), 2.0 / f64::from(n));
                 assert_eq!(r.max.x - r.min.x, r.max.y - r.min.y);
+                // The inverse side gives the quotient's bits.
+                assert_eq!(r.inverse_side(), f64::from(n) / 2.0);
+                for t in [0.0, 0.3, 0.999_999_9, 1.0 / 3.0] {
+                    let p = r.min + DVec2::splat(t) * r.side();
+                    let q = (p - r.min) * r.inverse_side();
+                    assert_eq!(
+                        q.to_array().map(f64::to_bits),
+                        ((p - r.min) / r.side()).to_array().map(f64::to_bits)
+                    );
+                }
                 if column == n - 1 {
                     assert_eq!(r.max.x, 1.0);
                 }
