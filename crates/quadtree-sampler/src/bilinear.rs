@@ -33,10 +33,16 @@ pub(crate) const FLOOR_LEVEL: u8 = 4;
 /// leaf to take a shape: below it the flat proxy's cheaper warp is kept.
 pub(crate) const MIN_GAIN: f64 = 0.02;
 
-/// The density of a leaf's proxy at `t` ∈ [0, 1]² of the leaf, relative to its mean.
-#[inline]
-pub(crate) fn factor(shape: &Shape, t: DVec2) -> f64 {
-    shape.density(t)
+/// A leaf's proxy density per unit square area at square point `p`: its mean `density`
+/// times its shape at p's place in its (dyadic) square `rect` — the one expression the
+/// per-wi warp, the baked warp's look-up and the leaf a sample was drawn in share.
+#[inline(always)]
+pub(crate) fn leaf_density(density: f64, shape: &Shape, rect: &Rect, p: DVec2) -> f64 {
+    if shape.is_flat() {
+        density
+    } else {
+        density * shape.density((p - rect.min) * rect.inverse_side())
+    }
 }
 
 /// The shape a leaf's proxy should take ([`Shape::FLAT`] or a fine one), from `f`, the
@@ -84,7 +90,7 @@ pub(crate) fn fit(control: [f64; 9], tests: &[Option<(DVec2, f64)>]) -> Shape {
     let (mut flat, mut shaped) = (0.0, 0.0);
     for &(t, f) in tests.iter().flatten() {
         flat += f * f;
-        shaped += f * f / factor(&shape, t);
+        shaped += f * f / shape.density(t);
     }
     if flat > 0.0 && shaped < (1.0 - MIN_GAIN) * flat {
         shape
@@ -114,11 +120,11 @@ mod tests {
         let lin = |t: DVec2| 1.0 + 2.0 * t.x;
         let s = fit(control_of(&lin), &tests_of(&lin));
         assert!(!s.is_flat());
-        assert!((factor(&s, DVec2::new(1.0, 0.3)) - 1.5).abs() < 0.02);
+        assert!((s.density(DVec2::new(1.0, 0.3)) - 1.5).abs() < 0.02);
         // A peak in the middle: the fine shape rises to it.
         let bump = |t: DVec2| 0.05 + (-(t - DVec2::splat(0.5)).length_squared() * 8.0).exp();
         let s = fit(control_of(&bump), &tests_of(&bump));
-        assert!(factor(&s, DVec2::splat(0.5)) > 1.5, "{s:?}");
+        assert!(s.density(DVec2::splat(0.5)) > 1.5, "{s:?}");
         // A constant: flat (no gain).
         let one = |_: DVec2| 2.0;
         assert!(fit(control_of(&one), &tests_of(&one)).is_flat());

@@ -11,7 +11,7 @@
 //! ∝ that shape (see `bilinear`). The density is known exactly, and f·cos/pdf is an unbiased
 //! estimator weight. [`WarpSampler::invert`] undoes the map.
 
-use crate::bilinear::{factor, fit_leaf};
+use crate::bilinear::{fit_leaf, leaf_density};
 use crate::chart::{child_column, child_index, child_row};
 use crate::config::BuildConfig;
 use crate::error::BuildError;
@@ -234,8 +234,12 @@ impl<B: Brdf> WarpSampler<B> {
         if shape.is_flat() {
             return self.density[leaf];
         }
-        let r = self.tree.nodes()[leaf].rect();
-        self.density[leaf] * factor(shape, (p - r.min) * r.inverse_side())
+        leaf_density(
+            self.density[leaf],
+            shape,
+            &self.tree.nodes()[leaf].rect(),
+            p,
+        )
     }
 
     /// The direction for uniforms `u` ∈ [0,1)², with its pdf per unit solid angle, f and the

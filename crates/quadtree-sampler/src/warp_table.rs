@@ -47,7 +47,7 @@
 //! bake, where it predicts f better: see `bilinear`); a file stores the shaped leaves beside
 //! the shares ([`WarpTable::shaped`]).
 
-use crate::bilinear::factor;
+use crate::bilinear::leaf_density;
 use crate::chart::{Rect, child_column, child_index, child_row};
 use crate::proposal::Shape;
 use alloc::vec::Vec;
@@ -139,7 +139,7 @@ impl WarpLeaf {
     /// [`WarpTable::density`] ends in.
     #[inline]
     pub(crate) fn density_at(&self, p: DVec2) -> f64 {
-        shaped_density(self.density, &self.shape, &self.rect, p)
+        leaf_density(self.density, &self.shape, &self.rect, p)
     }
 
     /// Whether square point `p` is in this leaf's half-open square, the squares
@@ -174,16 +174,6 @@ pub(crate) struct WarpTable {
     jump: Vec<u32>,
     /// Each node's share of the tree's volume: the stored form.
     shares: Vec<f32>,
-}
-
-/// A leaf's density per unit square area at `p`: its mean `density` times its shape there.
-#[inline(always)]
-fn shaped_density(density: f64, shape: &Shape, rect: &Rect, p: DVec2) -> f64 {
-    if shape.is_flat() {
-        density
-    } else {
-        density * factor(shape, (p - rect.min) * rect.inverse_side())
-    }
 }
 
 impl WarpTable {
@@ -573,7 +563,7 @@ impl WarpTable {
                 let drop = MAX_DEPTH - depth;
                 let rect = Rect::dyadic(depth as u8, kx >> drop, ky >> drop);
                 let shape = Shape::from_checked_bits(n.rows[0], n.rows[1]);
-                return shaped_density(density, &shape, &rect, p);
+                return leaf_density(density, &shape, &rect, p);
             }
             bit -= 1;
             let col = (kx >> bit) & 1;
