@@ -683,6 +683,57 @@ fn bench_reports_ratios_from_unbiased_estimates() {
     assert_eq!(o.status.code(), Some(2));
 }
 
+/// A bake whose trees a budget stops short of `--target-trials` says so: the count in its
+/// JSON and a warning on stderr (as `brdf sample` warns of one tree), with the E\[T\] it
+/// reached; a target the trees meet leaves both quiet.
+#[test]
+fn bake_reports_trees_a_budget_stopped() {
+    let dir = std::env::temp_dir().join(format!("brdf-cli-bake-budget-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("phong.bake");
+    let f = file.to_str().unwrap();
+    let bake = |target: &str| {
+        brdf(
+            &[
+                "bake",
+                "--model",
+                "phong",
+                "--param",
+                "n=100",
+                "--theta-steps",
+                "2",
+                "--target-trials",
+                target,
+                "--out",
+                f,
+            ],
+            "",
+        )
+    };
+    // 1.02 is the bounds' safety factor: no tree reaches it before its node budget.
+    let o = bake("1.02");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["budget_exhausted_trees"].as_u64(), Some(2), "{v}");
+    assert!(v["max_expected_trials"].as_f64().unwrap() > 1.02, "{v}");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("stopped 2 of 2 trees, short of --target-trials 1.02"),
+        "{err}"
+    );
+    let o = bake("1.1");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["budget_exhausted_trees"].as_u64(), Some(0), "{v}");
+    assert!(v["max_expected_trials"].as_f64().unwrap() <= 1.1, "{v}");
+    assert!(
+        o.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// `brdf bake` writes a bake file and reports it; `sample`, `pdf` and `test` read it with
 /// `--baked` (SPEC §7); the pdf `brdf pdf --baked` prints is the one the records carry.
 #[test]
@@ -714,6 +765,7 @@ fn bake_then_sample_pdf_and_test_baked() {
     );
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["trees"].as_u64(), Some(12));
+    assert_eq!(v["budget_exhausted_trees"].as_u64(), Some(0), "{v}");
     for key in ["nodes", "bytes", "build_seconds"] {
         assert!(v[key].as_f64().unwrap() > 0.0, "{key}: {v}");
     }

@@ -546,6 +546,24 @@ impl BakedSampler {
         self.all_slices().map(Slice::bytes).sum::<usize>() + core::mem::size_of::<Self>()
     }
 
+    /// How many of the trees (the adjoint's too) a budget stopped: the node or evaluation
+    /// budget of [`BakeConfig::build`] ran out before the seed's rule (or the target E\[T\])
+    /// was met, so those trees sample exactly but with more trials than asked for.
+    #[must_use]
+    pub fn budget_stopped_trees(&self) -> usize {
+        self.all_slices()
+            .filter(|s| s.tree.stats().budget_exhausted)
+            .count()
+    }
+
+    /// The largest E\[T\] of any tree, the adjoint's included (0 for a bake of no trees).
+    #[must_use]
+    pub fn max_expected_trials(&self) -> f64 {
+        self.all_slices()
+            .map(|s| s.tree.stats().expected_trials)
+            .fold(0.0, f64::max)
+    }
+
     /// E\[T\] of each forward grid tree (row-major, as [`BakeGrid::direction`]).
     #[must_use]
     pub fn expected_trials(&self) -> Vec<f64> {

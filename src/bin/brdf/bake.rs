@@ -68,6 +68,21 @@ pub(crate) fn run(
         .save(&args.out)
         .map_err(|e| CliError::Usage(format!("--out {e}")))?;
     let file_bytes = std::fs::metadata(&args.out).map(|m| m.len()).ok();
+    let stopped = baked.budget_stopped_trees();
+    if stopped > 0 {
+        // stdout stays the JSON scripts read; the shortfall is said on stderr too, as
+        // `brdf sample` says it of one tree.
+        let max = baked.max_expected_trials();
+        eprintln!(
+            "brdf: warning: a budget (nodes or f_r evaluations) stopped {stopped} of {} trees{}",
+            baked.trees(),
+            match args.target_trials {
+                Some(t) if max > t =>
+                    format!(", short of --target-trials {t}: E[T] up to {max:.4}"),
+                _ => format!(": E[T] up to {max:.4}"),
+            }
+        );
+    }
     let grid = baked.grid();
     let summary = json!({
         "model": brdf.name(),
@@ -86,7 +101,10 @@ pub(crate) fn run(
         },
         "map": config.build.map.name(),
         "defensive": config.defensive,
-        "max_expected_trials": baked.expected_trials().into_iter().fold(0.0, f64::max),
+        "max_expected_trials": baked.max_expected_trials(),
+        // Trees whose node or evaluation budget ran out before the split rule (or
+        // --target-trials) was met: exact still, with more trials a sample.
+        "budget_exhausted_trees": stopped,
         // Grid cells a rejection-mode query answers with its nearest tree along θ (one model
         // evaluation fewer a sample and a pdf), of `cells` (warp mode blends everywhere).
         "nearest_cells": {
