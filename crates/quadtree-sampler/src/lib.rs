@@ -113,6 +113,7 @@ pub use sampler::{
 };
 pub use table::{DEFAULT_TABLE_RES, TableSampler};
 pub use tree::{
-    LAST_RETRY_TOLERANCE, LEAF, Node, Quadtree, RETRY_TOLERANCE, TreeStats, albedo_of_volume,
+    LAST_RETRY_TOLERANCE, LEAF, Node, Quadtree, RETRY_TOLERANCE, TARGET_TOLERANCE, TreeStats,
+    albedo_of_volume,
 };
 pub use warp::{DEFAULT_MIX, WarpSampler};

@@ -186,6 +186,43 @@ fn a_constant_brdf_is_one_node_on_either_map() {
     }
 }
 
+/// The least target a build accepts, the bounds' safety factor, is reached where every bound
+/// is tight: Lambert is one node on both maps, at the normal and at grazing, within
+/// `TARGET_TOLERANCE` of the target (compared exactly, the rounding of the stored volumes
+/// left it 8·10⁻⁸ over, and the build split a million nodes for nothing). A lobe cannot
+/// reach it: its build stops at the budget and says so.
+#[test]
+fn a_target_at_the_safety_factor_is_reached_where_the_bounds_are_tight() {
+    let lambert = model("lambert", &[]);
+    let safety = BuildConfig::default().bound_safety;
+    for map in [DiskMap::Orthographic, DiskMap::Concentric] {
+        for theta in [0.0, 45.0, 89.0] {
+            let config = BuildConfig {
+                map,
+                ..BuildConfig::with_target_trials(safety)
+            };
+            let st = QuadtreeSampler::new(&*lambert, dir(theta, 20.0), config)
+                .unwrap()
+                .stats();
+            assert_eq!(st.nodes, 1, "{map:?} {theta}°: {st:?}");
+            assert!(!st.budget_exhausted, "{map:?} {theta}°: {st:?}");
+            assert!(
+                st.expected_trials <= safety * (1.0 + quadtree_sampler::TARGET_TOLERANCE),
+                "{map:?} {theta}°: {st:?}"
+            );
+        }
+    }
+    let phong = model("phong", &["n=100"]);
+    let config = BuildConfig {
+        node_budget: 1 << 12,
+        ..BuildConfig::with_target_trials(safety)
+    };
+    let st = QuadtreeSampler::new(&*phong, dir(30.0, 0.0), config)
+        .unwrap()
+        .stats();
+    assert!(st.budget_exhausted && st.expected_trials > safety, "{st:?}");
+}
+
 #[test]
 fn builds_terminate_at_grazing_incidence() {
     for &(name, params) in SETS {
