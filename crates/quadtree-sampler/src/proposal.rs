@@ -246,15 +246,13 @@ impl Shape {
     /// S(t)/mean(S) at box coordinates `t` ∈ [0, 1]²: the density per unit box area of
     /// [`Shape::warp`]'s points (1 for [`Shape::FLAT`]). From the integer levels, one
     /// division.
-    ///
-    /// On the pdf's path (twice a baked warp pdf), so written out by hand: the piece's
-    /// corners by index, not through [`Shape::piece`]'s array maps, which the compiler
-    /// left as a call and a round trip through the stack (phong n = 1000's baked warp pdf
-    /// spent 22 % of its time here). The same operations in the same order, so the same
-    /// bits.
     #[must_use]
     #[inline(always)]
     pub fn density(&self, t: DVec2) -> f64 {
+        // On the pdf's path (twice a baked warp pdf), so written out by hand: the piece's
+        // corners by index, not through `piece`'s array maps, which the compiler left as a
+        // call and a round trip through the stack (phong n = 1000's baked warp pdf spent
+        // 22 % of its time here). The same operations in the same order: the same bits.
         let g = &self.grid;
         let l = |at: usize| f64::from(g[at]);
         // The sums of levels in integers (exact in f64 too: the same bits, one conversion).
