@@ -162,6 +162,18 @@ impl BuildConfig {
                  safety factor",
             );
         }
+        // The seed's rule promises E[T] ≤ 1/split_threshold, and the build enforces it; for
+        // the same reason a threshold above 1/bound_safety (0.98 by default) asks for what no
+        // tree gives: every node's P stays below it, so every node splits until a budget
+        // stops the build.
+        if 1.0 / self.split_threshold < self.bound_safety {
+            return bad(
+                "split_threshold",
+                self.split_threshold,
+                "at most 1/bound_safety (0.98 by default): a leaf's acceptance P never exceeds \
+                 1/bound_safety, so above it every node would split until a budget ran out",
+            );
+        }
         if !(2..=64).contains(&self.bound_grid) {
             return bad("bound_grid", f64::from(self.bound_grid), "in [2, 64]");
         }

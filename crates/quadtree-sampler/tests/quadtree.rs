@@ -570,6 +570,16 @@ fn bad_inputs_are_typed_errors() {
             bound_safety: 1.2,
             ..BuildConfig::default()
         },
+        // P never exceeds 1/bound_safety: a higher threshold splits every node.
+        BuildConfig {
+            split_threshold: 0.99,
+            ..BuildConfig::default()
+        },
+        BuildConfig {
+            split_threshold: 0.7,
+            bound_safety: 1.5,
+            ..BuildConfig::default()
+        },
         BuildConfig {
             bound_safety: 0.9,
             ..BuildConfig::default()
