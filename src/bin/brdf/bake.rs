@@ -4,7 +4,7 @@
 use crate::CliError;
 use crate::sample::MapArg;
 use brdf_sampling::quadtree_sampler::{
-    BakeConfig, BakedMode, BakedSampler, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS,
+    BakeConfig, BakedMode, BakedSampler, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, TARGET_TOLERANCE,
 };
 use brdf_sampling::{Brdf, DiskMap};
 use serde_json::json;
@@ -69,17 +69,28 @@ pub(crate) fn run(
         .map_err(|e| CliError::Usage(format!("--out {e}")))?;
     let file_bytes = std::fs::metadata(&args.out).map(|m| m.len()).ok();
     let stopped = baked.budget_stopped_trees();
-    if stopped > 0 {
+    let max = baked.max_expected_trials();
+    // A target some tree did not reach (within the tolerance target mode stops at): a
+    // budget ran out, or no leaf was left that could split (all at the depth limit).
+    let short = args
+        .target_trials
+        .filter(|&t| max > t * (1.0 + TARGET_TOLERANCE));
+    if stopped > 0 || short.is_some() {
         // stdout stays the JSON scripts read; the shortfall is said on stderr too, as
         // `brdf sample` says it of one tree.
-        let max = baked.max_expected_trials();
+        let cause = if stopped > 0 {
+            format!(
+                "a budget (nodes or f_r evaluations) stopped {stopped} of {} trees",
+                baked.trees()
+            )
+        } else {
+            String::from("the depth limit (no leaf left that could split) stopped trees")
+        };
         eprintln!(
-            "brdf: warning: a budget (nodes or f_r evaluations) stopped {stopped} of {} trees{}",
-            baked.trees(),
-            match args.target_trials {
-                Some(t) if max > t =>
-                    format!(", short of --target-trials {t}: E[T] up to {max:.4}"),
-                _ => format!(": E[T] up to {max:.4}"),
+            "brdf: warning: {cause}{}",
+            match short {
+                Some(t) => format!(", short of --target-trials {t}: E[T] up to {max:.4}"),
+                None => format!(": E[T] up to {max:.4}"),
             }
         );
     }
@@ -101,7 +112,7 @@ pub(crate) fn run(
         },
         "map": config.build.map.name(),
         "defensive": config.defensive,
-        "max_expected_trials": baked.max_expected_trials(),
+        "max_expected_trials": max,
         // Trees whose node or evaluation budget ran out before the split rule (or
         // --target-trials) was met: exact still, with more trials a sample.
         "budget_exhausted_trees": stopped,

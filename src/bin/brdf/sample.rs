@@ -5,6 +5,7 @@ use brdf_sampling::geometry::{unit_direction, unit_direction_above};
 use brdf_sampling::glam::Vec3;
 use brdf_sampling::quadtree_sampler::{
     AnySampler, BakedMode, BakedSampler, BuildConfig, DirectionSampler, SamplerMode,
+    TARGET_TOLERANCE, TreeStats,
 };
 use brdf_sampling::{Brdf, DiskMap};
 use rand_core::SeedableRng;
@@ -296,19 +297,17 @@ pub(crate) fn run_sample(
             obj.insert("max_depth".into(), json!(stats.max_depth));
             obj.insert("bytes".into(), json!(stats.bytes));
             obj.insert("budget_exhausted".into(), json!(stats.budget_exhausted));
-            if stats.budget_exhausted {
+            let target = args.options.target_trials;
+            obj.insert(
+                "target_reached".into(),
+                match target {
+                    Some(t) => json!(stats.expected_trials <= t * (1.0 + TARGET_TOLERANCE)),
+                    None => Value::Null,
+                },
+            );
+            if let Some(warning) = shortfall(stats, target) {
                 // stdout stays the JSON scripts read; the shortfall is said on stderr too.
-                eprintln!(
-                    "brdf: warning: a budget (nodes or f_r evaluations) stopped the build at {} nodes{}",
-                    stats.nodes,
-                    match args.options.target_trials {
-                        Some(t) if stats.expected_trials > t => format!(
-                            ", short of --target-trials {t}: E[T] = {:.4}",
-                            stats.expected_trials
-                        ),
-                        _ => String::new(),
-                    }
-                );
+                eprintln!("{warning}");
             }
             match violations {
                 Some(v) => {
@@ -336,6 +335,7 @@ pub(crate) fn run_sample(
             obj.insert("leaves".into(), Value::Null);
             obj.insert("max_depth".into(), Value::Null);
             obj.insert("budget_exhausted".into(), Value::Null);
+            obj.insert("target_reached".into(), Value::Null);
             obj.insert("expected_trials".into(), Value::Null);
             obj.insert(
                 "bound_violations".into(),
@@ -356,6 +356,7 @@ pub(crate) fn run_sample(
                 "bytes",
                 "bound_violations",
                 "budget_exhausted",
+                "target_reached",
             ] {
                 obj.insert(k.into(), Value::Null);
             }
@@ -418,5 +419,71 @@ impl Drop for RemoveOnDrop {
         if let Some(p) = self.0.take() {
             let _ = std::fs::remove_file(p);
         }
+    }
+}
+
+/// The warning for a tree its build stopped short: a budget ran out, or a `target` E\[T\]
+/// was not reached (within the tolerance target mode stops at) because no leaf was left
+/// that could split (all at the depth limit). `None` for a tree built as asked.
+fn shortfall(stats: &TreeStats, target: Option<f64>) -> Option<String> {
+    let short = target.filter(|&t| stats.expected_trials > t * (1.0 + TARGET_TOLERANCE));
+    if !stats.budget_exhausted && short.is_none() {
+        return None;
+    }
+    let cause = if stats.budget_exhausted {
+        String::from("a budget (nodes or f_r evaluations)")
+    } else {
+        format!(
+            "the depth limit (no leaf left that could split; the deepest at depth {})",
+            stats.max_depth
+        )
+    };
+    Some(format!(
+        "brdf: warning: {cause} stopped the build at {} nodes{}",
+        stats.nodes,
+        match short {
+            Some(t) => format!(
+                ", short of --target-trials {t}: E[T] = {:.4}",
+                stats.expected_trials
+            ),
+            None => String::new(),
+        }
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A build short of its target says why: the budget, or the depth limit when no budget
+    /// ran out; one within the tolerance of its target, or stopped by nothing, is quiet.
+    #[test]
+    fn a_shortfall_names_its_cause() {
+        let stats = |e, budget| TreeStats {
+            nodes: 441,
+            max_depth: 20,
+            expected_trials: e,
+            budget_exhausted: budget,
+            ..TreeStats::default()
+        };
+        let depth = shortfall(&stats(1.0515, false), Some(1.03)).expect("short");
+        assert!(depth.contains("the depth limit"), "{depth}");
+        assert!(depth.contains("deepest at depth 20"), "{depth}");
+        assert!(
+            depth.contains("short of --target-trials 1.03: E[T] = 1.0515"),
+            "{depth}"
+        );
+        let budget = shortfall(&stats(1.0515, true), Some(1.03)).expect("short");
+        assert!(
+            budget.contains(
+                "a budget (nodes or f_r evaluations) stopped the build at 441 nodes, short of"
+            ),
+            "{budget}"
+        );
+        let budget = shortfall(&stats(1.2, true), None).expect("stopped");
+        assert!(budget.ends_with("at 441 nodes"), "{budget}");
+        assert_eq!(shortfall(&stats(1.020_000_08, false), Some(1.02)), None);
+        assert_eq!(shortfall(&stats(1.1, false), Some(1.25)), None);
+        assert_eq!(shortfall(&stats(1.9, false), None), None);
     }
 }
