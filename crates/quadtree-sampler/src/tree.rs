@@ -148,7 +148,9 @@ pub struct TreeStats {
     pub bytes: usize,
     /// E\[T\] = Σ box volumes / Σ v1 over live leaves: expected rejection trials per sample.
     pub expected_trials: f64,
-    /// Whether the node budget stopped a split.
+    /// Whether a budget (nodes, or f_r evaluations) stopped a split. A target E\[T\] can
+    /// also be missed with this false, where no leaf is left that can split (every live
+    /// leaf at the depth limit): compare `expected_trials` with the target.
     pub budget_exhausted: bool,
 }
 
