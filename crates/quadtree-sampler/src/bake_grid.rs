@@ -97,6 +97,10 @@ pub struct BakeGrid {
     phis: Vec<f64>,
     /// 1/(θ step): rows per radian, so a query's row position is one multiply.
     rows_per_radian: f64,
+    /// cos θ of a direction 10⁻³ rad before the last row: above it no direction is beyond
+    /// the last row, whatever `fast_acos`'s error (7·10⁻⁵), so most queries skip its arc
+    /// cosine (derived).
+    within_z: f64,
 }
 
 impl BakeGrid {
@@ -138,11 +142,13 @@ impl BakeGrid {
             }
         };
         let rows_per_radian = 1.0 / (thetas[1] - thetas[0]);
+        let within_z = m::cos(t_max - 1e-3);
         let grid = Self {
             domain,
             thetas,
             phis,
             rows_per_radian,
+            within_z,
         };
         if grid.len() > MAX_TREES {
             return Err(BakeError::TooManyTrees(grid.len()));
@@ -233,6 +239,18 @@ impl BakeGrid {
     #[must_use]
     pub fn cells(&self) -> usize {
         (self.thetas.len() - 1) * self.phi_cells()
+    }
+
+    /// How far beyond the last row a folded direction `w` (unit, z > 0) lies, in row
+    /// spacings, at most 1: 0 within the grid. A function of `w` alone, so a mixture
+    /// weighted by it stays exact.
+    #[inline]
+    pub(crate) fn beyond_last_row(&self, w: DVec3) -> f64 {
+        if w.z >= self.within_z {
+            return 0.0;
+        }
+        let last = (self.thetas.len() - 1) as f64;
+        (fast_acos(w.z) * self.rows_per_radian - last).clamp(0.0, 1.0)
     }
 
     /// The neighbouring trees of a folded direction `w` (unit, z > 0) and their weights
@@ -498,6 +516,32 @@ mod tests {
         }
         assert_eq!(fast_atan2(0.0, 0.0), 0.0);
         assert_eq!(fast_atan2(0.0, 1.0), 0.0);
+    }
+
+    #[test]
+    fn beyond_the_last_row_is_measured_in_row_spacings() {
+        let sym = Symmetry {
+            isotropic: true,
+            ..Symmetry::default()
+        };
+        for steps in [2u16, 8, 32] {
+            let g = BakeGrid::new(sym, steps, 9).unwrap();
+            let last = GRID_THETA_MAX_DEG.to_radians();
+            let spacing = last / f64::from(steps - 1);
+            let at = |t: f64| g.beyond_last_row(DVec3::new(t.sin(), 0.0, t.cos()));
+            assert_eq!(at(0.0), 0.0);
+            assert_eq!(at(last - 2e-3), 0.0);
+            let half = (last + FRAC_PI_2) / 2.0;
+            assert!((at(half) - (half - last) / spacing).abs() < 1e-3, "{steps}");
+            assert!(at(FRAC_PI_2 - 1e-9) > 0.0 && at(FRAC_PI_2 - 1e-9) <= 1.0);
+            // The shortcut above `within_z` changes nothing: the formula alone agrees.
+            let formula =
+                |z: f64| ((fast_acos(z) * g.rows_per_radian) - (steps - 1) as f64).clamp(0.0, 1.0);
+            for k in 0..20_000 {
+                let t = last - 5e-3 + 1e-2 * f64::from(k) / 20_000.0;
+                assert_eq!(at(t), formula(t.cos()), "{steps} {t}");
+            }
+        }
     }
 
     #[test]
