@@ -214,9 +214,9 @@ impl BakedSampler {
                 let to_local = if iso {
                     isotropic_to_local(cs, (1.0, 0.0))
                 } else {
-                    let m = tables.slices[c.slice].mirror;
+                    let mk = tables.slices[c.slice].mirror;
                     let r = rotation_arc(
-                        DVec3::new(m.x, m.y, 0.0).normalize(),
+                        DVec3::new(mk.x, mk.y, 0.0).normalize(),
                         DVec3::new(mc.x, mc.y, 0.0).normalize(),
                     );
                     DMat3::from_cols(r.x_axis * unfold, r.y_axis * unfold, r.z_axis * unfold)
