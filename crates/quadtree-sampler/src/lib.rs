@@ -114,6 +114,6 @@ pub use sampler::{
 pub use table::{DEFAULT_TABLE_RES, TableSampler};
 pub use tree::{
     LAST_RETRY_TOLERANCE, LEAF, Node, Quadtree, RETRY_TOLERANCE, TARGET_TOLERANCE, TreeStats,
-    albedo_of_volume,
+    albedo_of_volume, target_limit,
 };
 pub use warp::{DEFAULT_MIX, WarpSampler};

@@ -213,6 +213,14 @@ pub const LAST_RETRY_TOLERANCE: f64 = 1e-3;
 /// the node budget (1 048 533 nodes, 12.6 s, E\[T\] no lower) where one node serves.
 pub const TARGET_TOLERANCE: f64 = 1e-6;
 
+/// The largest E\[T\] that reaches `target`: the target and [`TARGET_TOLERANCE`] of it. The
+/// one test target mode stops on and a build's shortfall is reported by.
+#[inline]
+#[must_use]
+pub fn target_limit(target: f64) -> f64 {
+    target * (1.0 + TARGET_TOLERANCE)
+}
+
 /// What a leaf keeps for its split: nothing, its integration cells (its children start
 /// from their quadrants), or its four children already evaluated — speculatively, by a
 /// parallel build while the leaf's own level was being evaluated ([`Speculation`]).
@@ -619,9 +627,9 @@ impl Quadtree {
         (first_new..self.nodes.len() as u32).collect()
     }
 
-    /// SPEC §3's target mode (reached within [`TARGET_TOLERANCE`]): split, in batches, the live leaves with the largest reducible
+    /// SPEC §3's target mode: split, in batches, the live leaves with the largest reducible
     /// wasted volume (box/safety − v1: the safety factor's share cannot be split away) until
-    /// E\[T\] ≤ target, the budget is spent, or no leaf can split. A batch holds no more
+    /// E\[T\] ≤ [`target_limit`] of the target, the budget is spent, or no leaf can split. A batch holds no more
     /// leaves than the excess volume needs (their wastes × safety, summed): split before the
     /// last, they cannot have brought E\[T\] to the target (up to the children's v1 moving
     /// within the integration tolerance), so a batch evaluates in parallel yet never splits
@@ -660,7 +668,7 @@ impl Quadtree {
                 }
             }
         }
-        let target = target * (1.0 + TARGET_TOLERANCE);
+        let target = target_limit(target);
         while v1s > 0.0 && boxes / v1s > target {
             // A split removes at most safety × its leaf's reducible waste (each child's box
             // is at least safety × its v1): take leaves until that reaches the excess volume

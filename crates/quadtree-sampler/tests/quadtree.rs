@@ -188,7 +188,7 @@ fn a_constant_brdf_is_one_node_on_either_map() {
 
 /// The least target a build accepts, the bounds' safety factor, is reached where every bound
 /// is tight: Lambert is one node on both maps, at the normal and at grazing, within
-/// `TARGET_TOLERANCE` of the target (compared exactly, the rounding of the stored volumes
+/// `target_limit` of the target (compared exactly, the rounding of the stored volumes
 /// left it 8·10⁻⁸ over, and the build split a million nodes for nothing). A lobe cannot
 /// reach it: its build stops at the budget and says so.
 #[test]
@@ -207,7 +207,7 @@ fn a_target_at_the_safety_factor_is_reached_where_the_bounds_are_tight() {
             assert_eq!(st.nodes, 1, "{map:?} {theta}°: {st:?}");
             assert!(!st.budget_exhausted, "{map:?} {theta}°: {st:?}");
             assert!(
-                st.expected_trials <= safety * (1.0 + quadtree_sampler::TARGET_TOLERANCE),
+                st.expected_trials <= quadtree_sampler::target_limit(safety),
                 "{map:?} {theta}°: {st:?}"
             );
         }

@@ -4,7 +4,7 @@
 use crate::CliError;
 use crate::sample::MapArg;
 use brdf_sampling::quadtree_sampler::{
-    BakeConfig, BakedMode, BakedSampler, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, TARGET_TOLERANCE,
+    BakeConfig, BakedMode, BakedSampler, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, target_limit,
 };
 use brdf_sampling::{Brdf, DiskMap};
 use serde_json::json;
@@ -72,9 +72,7 @@ pub(crate) fn run(
     let max = baked.max_expected_trials();
     // A target some tree did not reach (within the tolerance target mode stops at): a
     // budget ran out, or no leaf was left that could split (all at the depth limit).
-    let short = args
-        .target_trials
-        .filter(|&t| max > t * (1.0 + TARGET_TOLERANCE));
+    let short = args.target_trials.filter(|&t| max > target_limit(t));
     if stopped > 0 || short.is_some() {
         // stdout stays the JSON scripts read; the shortfall is said on stderr too, as
         // `brdf sample` says it of one tree.

@@ -4,8 +4,8 @@ use crate::CliError;
 use brdf_sampling::geometry::{unit_direction, unit_direction_above};
 use brdf_sampling::glam::Vec3;
 use brdf_sampling::quadtree_sampler::{
-    AnySampler, BakedMode, BakedSampler, BuildConfig, DirectionSampler, SamplerMode,
-    TARGET_TOLERANCE, TreeStats,
+    AnySampler, BakedMode, BakedSampler, BuildConfig, DirectionSampler, SamplerMode, TreeStats,
+    target_limit,
 };
 use brdf_sampling::{Brdf, DiskMap};
 use rand_core::SeedableRng;
@@ -301,7 +301,7 @@ pub(crate) fn run_sample(
             obj.insert(
                 "target_reached".into(),
                 match target {
-                    Some(t) => json!(stats.expected_trials <= t * (1.0 + TARGET_TOLERANCE)),
+                    Some(t) => json!(stats.expected_trials <= target_limit(t)),
                     None => Value::Null,
                 },
             );
@@ -426,7 +426,7 @@ impl Drop for RemoveOnDrop {
 /// was not reached (within the tolerance target mode stops at) because no leaf was left
 /// that could split (all at the depth limit). `None` for a tree built as asked.
 fn shortfall(stats: &TreeStats, target: Option<f64>) -> Option<String> {
-    let short = target.filter(|&t| stats.expected_trials > t * (1.0 + TARGET_TOLERANCE));
+    let short = target.filter(|&t| stats.expected_trials > target_limit(t));
     if !stats.budget_exhausted && short.is_none() {
         return None;
     }
