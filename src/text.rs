@@ -6,17 +6,14 @@
 use glam::Vec3;
 use std::fmt;
 
-/// Longest quotation of the offending text in an error message, in characters.
-pub const QUOTE_LIMIT: usize = 200;
+pub use brdf_core::error::QUOTE_LIMIT;
 
-/// At most [`QUOTE_LIMIT`] characters of `text` (cut on a character boundary), followed by
-/// `…` and the full length in bytes when it was cut.
+/// `text` as an error message quotes it ([`brdf_core::error::Quoted`]): control characters
+/// escaped, so that a line holding a terminal's escape sequence does not reach the terminal
+/// as one, and at most [`QUOTE_LIMIT`] characters (then `…` and the full length in bytes).
 #[must_use]
 pub fn excerpt(text: &str) -> String {
-    match text.char_indices().nth(QUOTE_LIMIT) {
-        None => text.to_owned(),
-        Some((cut, _)) => format!("{}… ({} bytes in all)", &text[..cut], text.len()),
-    }
+    brdf_core::error::Quoted(text).to_string()
 }
 
 /// Why a line or a vector could not be read.
@@ -142,5 +139,11 @@ mod tests {
         let e = parse_numbers::<3>(&long, "a b c").unwrap_err().to_string();
         assert!(e.chars().count() < QUOTE_LIMIT + 80, "{}", e.len());
         assert_eq!(excerpt("short"), "short");
+        // Control characters are escaped, whatever the line's length.
+        let e = parse_numbers::<3>("\u{1b}[31mred 1 2", "a b c")
+            .unwrap_err()
+            .to_string();
+        assert!(!e.chars().any(char::is_control), "{e:?}");
+        assert!(e.contains("\\u{1b}[31mred"), "{e:?}");
     }
 }

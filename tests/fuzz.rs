@@ -76,7 +76,11 @@ proptest! {
             parse_numbers::<3>(&l, "wox woy woz").map(|o| o.map(|a| a.to_vec())),
         ] {
             match r {
-                Err(e) => prop_assert!(e.to_string().chars().count() <= QUOTE_LIMIT + 80),
+                Err(e) => {
+                    let m = e.to_string();
+                    prop_assert!(m.chars().count() <= QUOTE_LIMIT + 80);
+                    prop_assert!(!m.chars().any(char::is_control), "{:?}", m);
+                }
                 Ok(None) => prop_assert!(l.split_ascii_whitespace().next().is_none()),
                 Ok(Some(v)) if v.len() == 6 => {
                     let info = &registry::models()[m];
@@ -99,7 +103,11 @@ proptest! {
     fn fuzz_vectors(l in line()) {
         match parse_vec3(&l) {
             Ok(v) => prop_assert_eq!(l.split(',').count(), 3, "{}", v),
-            Err(e) => prop_assert!(e.to_string().chars().count() <= QUOTE_LIMIT + 80),
+            Err(e) => {
+                let m = e.to_string();
+                prop_assert!(m.chars().count() <= QUOTE_LIMIT + 80);
+                prop_assert!(!m.chars().any(char::is_control), "{:?}", m);
+            }
         }
     }
 
@@ -108,9 +116,17 @@ proptest! {
     fn fuzz_params(m in 0usize..12, name in prop_oneof!["[a-z_]{0,12}", Just("n".to_owned()), Just("kd".to_owned()), Just("alpha_x".to_owned()), Just("m".to_owned())], value in line()) {
         let info = &registry::models()[m];
         let text = format!("{name}={value}");
-        if let Ok(p) = info.parse_params([text.as_str()]) {
+        match info.parse_params([text.as_str()]) {
             // Parsed: every value is in range, and the model builds or names the constraint.
-            let _ = info.build(&p).map(|b| b.eval(Vec3::Z, Vec3::Z));
+            Ok(p) => {
+                let _ = info.build(&p).map(|b| b.eval(Vec3::Z, Vec3::Z));
+            }
+            // Refused: the message quotes a bounded, escaped excerpt of what it got.
+            Err(e) => {
+                let m = e.to_string();
+                prop_assert!(m.chars().count() <= QUOTE_LIMIT + 120, "{}", m.len());
+                prop_assert!(!m.chars().any(char::is_control), "{:?}", m);
+            }
         }
     }
 

@@ -2,6 +2,66 @@
 
 use alloc::string::String;
 use core::fmt;
+use core::fmt::Write as _;
+
+/// Longest quotation of an offending text (a model name, a parameter, a path) in an error
+/// message, in characters: see [`Quoted`].
+pub const QUOTE_LIMIT: usize = 200;
+
+/// Text an error message quotes, as it is displayed: control characters escaped (`\u{1b}`,
+/// `\n`), and at most [`QUOTE_LIMIT`] characters written (an escape counts its own length),
+/// cut on a character boundary and followed by `…` and the text's full length in bytes where
+/// it was cut. What a message quotes may come from a file (a bake file's parameters, a path
+/// inside one) or a pipe, not only from a person: a hundred-megabyte parameter is not a
+/// hundred-megabyte message, and an escape sequence in it does not reach the terminal that
+/// shows the message as one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Quoted<'a>(pub &'a str);
+
+impl fmt::Display for Quoted<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write_quoted(f, self.0, QUOTE_LIMIT)
+    }
+}
+
+/// Longest quotation of a path in an error message, in characters: Linux's `PATH_MAX`, so
+/// that every path a file system can open is quoted whole (its file name, at the end,
+/// included), and one read from a file is bounded all the same.
+pub const PATH_QUOTE_LIMIT: usize = 4096;
+
+/// A path an error message names, as it is displayed: [`Quoted`] with the limit
+/// [`PATH_QUOTE_LIMIT`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct QuotedPath<'a>(pub &'a str);
+
+impl fmt::Display for QuotedPath<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write_quoted(f, self.0, PATH_QUOTE_LIMIT)
+    }
+}
+
+/// `text` with control characters escaped, at most `limit` characters of it written (see
+/// [`Quoted`]).
+fn write_quoted(f: &mut fmt::Formatter<'_>, text: &str, limit: usize) -> fmt::Result {
+    let mut written = 0;
+    for c in text.chars() {
+        let escape = c.is_control().then(|| c.escape_default());
+        let len = escape.clone().map_or(1, Iterator::count);
+        if written + len > limit {
+            return write!(f, "… ({} bytes in all)", text.len());
+        }
+        written += len;
+        match escape {
+            Some(e) => {
+                for e in e {
+                    f.write_char(e)?;
+                }
+            }
+            None => f.write_char(c)?,
+        }
+    }
+    Ok(())
+}
 
 /// What was wrong with a direction handed to the library.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -127,20 +187,27 @@ impl fmt::Display for ParamError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Self::UnknownModel { name } => {
+                let name = Quoted(name);
                 write!(f, "unknown model `{name}` (run `brdf models` for the list)")
             }
             Self::UnknownParam { model, name, known } => write!(
                 f,
-                "model `{model}` has no parameter `{name}` (it has: {known})"
+                "model `{model}` has no parameter `{}` (it has: {known})",
+                Quoted(name)
             ),
             Self::Malformed { text } => {
+                let text = Quoted(text);
                 write!(f, "malformed parameter `{text}`: expected name=value")
             }
             Self::BadValue {
                 name,
                 text,
                 expected,
-            } => write!(f, "parameter `{name}`: cannot read `{text}` as {expected}"),
+            } => write!(
+                f,
+                "parameter `{name}`: cannot read `{}` as {expected}",
+                Quoted(text)
+            ),
             Self::OutOfRange { name, value, range } => write!(
                 f,
                 "parameter `{name}` = {value} is out of its range {range}"
@@ -242,8 +309,82 @@ pub struct DataError {
 
 impl fmt::Display for DataError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}: {}", self.path, self.fault)
+        write!(f, "{}: {}", QuotedPath(&self.path), self.fault)
     }
 }
 
 impl core::error::Error for DataError {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use alloc::string::ToString;
+    use alloc::vec::Vec;
+
+    #[test]
+    fn quotes_are_short_and_escape_control_characters() {
+        let q = |s: &str| Quoted(s).to_string();
+        assert_eq!(q("kd=0.5"), "kd=0.5");
+        assert_eq!(q(""), "");
+        assert_eq!(q("a\nb\u{1b}[31m"), "a\\nb\\u{1b}[31m");
+        // Exactly the limit is quoted whole; one more character is cut.
+        let at_limit = "é".repeat(QUOTE_LIMIT);
+        assert_eq!(q(&at_limit), at_limit);
+        let over = "é".repeat(QUOTE_LIMIT + 1);
+        let cut = q(&over);
+        assert!(cut.starts_with(&"é".repeat(QUOTE_LIMIT)), "{cut}");
+        assert!(cut.ends_with("… (402 bytes in all)"), "{cut}");
+        // Escapes count their own length: 200 escape characters are not 1 200 quoted ones.
+        let escapes = q(&"\u{1b}".repeat(1000));
+        assert!(escapes.chars().count() < QUOTE_LIMIT + 30, "{escapes}");
+        assert!(escapes.ends_with("… (1000 bytes in all)"), "{escapes}");
+        assert!(!escapes.chars().any(char::is_control));
+    }
+
+    #[test]
+    fn parameter_errors_quote_what_they_were_given() {
+        let huge = ["\u{7}", &"x".repeat(1 << 20)].concat();
+        let errors: Vec<ParamError> = Vec::from([
+            ParamError::UnknownModel { name: huge.clone() },
+            ParamError::UnknownParam {
+                model: "phong",
+                name: huge.clone(),
+                known: "kd, ks, n".into(),
+            },
+            ParamError::Malformed { text: huge.clone() },
+            ParamError::BadValue {
+                name: "n",
+                text: huge.clone(),
+                expected: "a number",
+            },
+        ]);
+        for e in errors {
+            let m = e.to_string();
+            assert!(
+                m.chars().count() < QUOTE_LIMIT + 120,
+                "{} characters",
+                m.len()
+            );
+            assert!(m.contains("\\u{7}xxx") && m.contains("(1048577 bytes in all)"));
+            assert!(!m.chars().any(char::is_control), "{m}");
+        }
+        // A path is quoted whole up to PATH_QUOTE_LIMIT (a file name at its end included),
+        // and bounded past it.
+        let path = |path: String| {
+            ParamError::Data {
+                name: "file",
+                error: DataError {
+                    path,
+                    fault: DataFault::Missing,
+                },
+            }
+            .to_string()
+        };
+        let long = ["/d".repeat(1500), "/brass.binary".into()].concat();
+        assert!(path(long).ends_with("/d/brass.binary: no such file"));
+        let m = path(huge);
+        assert!(m.chars().count() < PATH_QUOTE_LIMIT + 120, "{}", m.len());
+        assert!(m.starts_with("parameter `file`: \\u{7}xxx"), "{}", &m[..40]);
+        assert!(!m.chars().any(char::is_control));
+    }
+}

@@ -45,7 +45,10 @@ pub mod special;
 pub mod warp;
 
 pub use brdf::{Brdf, BrdfSample, MIN_STEP_WIDTH, PeakHints, Symmetry, usable_step_width};
-pub use error::{Constraint, DataError, DataFault, DirectionError, ParamError};
+pub use error::{
+    Constraint, DataError, DataFault, DirectionError, PATH_QUOTE_LIMIT, ParamError, QUOTE_LIMIT,
+    Quoted, QuotedPath,
+};
 pub use frame::Frame;
 pub use glam;
 pub use maps::DiskMap;

@@ -606,6 +606,36 @@ fn damaged_bake_files_are_typed_errors() {
         BakedSampler::from_bytes(&reseal(unknown)),
         Err(BakeFileError::Model(_))
     ));
+    // A resealed file whose parameter is 100 kB long and holds a terminal escape sequence:
+    // the message quotes at most QUOTE_LIMIT characters of it, the escape escaped.
+    let (at, old) = (0..bytes.len())
+        .find_map(|i| {
+            let len = usize::from(bytes[i]);
+            let text = bytes.get(i + 1..i + 1 + len)?;
+            (len > 0 && text.starts_with(b"n=")).then_some((i, len))
+        })
+        .expect("the parameter n= in the payload");
+    let evil = [b"n=\x1b[31m".as_slice(), &[b'9'; 100_000]].concat();
+    let mut long_len = Vec::new();
+    let mut v = evil.len();
+    while v >= 0x80 {
+        long_len.push((v as u8 & 0x7f) | 0x80);
+        v >>= 7;
+    }
+    long_len.push(v as u8);
+    let mut long = [&bytes[..at], &long_len, &evil, &bytes[at + 1 + old..]].concat();
+    let payload = (long.len() - 24) as u64;
+    long[12..20].copy_from_slice(&payload.to_le_bytes());
+    let e = BakedSampler::from_bytes(&reseal(long)).unwrap_err();
+    assert!(matches!(e, BakeFileError::Model(_)), "{e:?}");
+    let message = e.to_string();
+    assert!(
+        message.chars().count() < brdf_core::QUOTE_LIMIT + 120,
+        "{} characters",
+        message.chars().count()
+    );
+    assert!(!message.chars().any(char::is_control), "{message:?}");
+    assert!(message.contains("\\u{1b}[31m999"), "{message}");
     let mut garbage = bytes.clone();
     let n = garbage.len();
     for b in &mut garbage[20..n - 4] {
