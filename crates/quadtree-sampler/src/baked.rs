@@ -50,8 +50,9 @@ use rand_core::Rng;
 
 /// The polar angle of the grid's last row of trees, in degrees. A `wi` beyond it (up to the
 /// horizon) uses that row alone: rotated onto its mirror direction, and, with the share linear
-/// interpolation would give a row one spacing further on, untilted (turned about the normal
-/// only), which covers the band above the horizon that the rotation leaves.
+/// interpolation would give a row one spacing further on (a spacing no wider than the
+/// default grid's), untilted (turned about the normal only), which covers the band above the
+/// horizon that the rotation leaves.
 pub const GRID_THETA_MAX_DEG: f64 = 89.0;
 
 /// The node budget of each grid tree in [`BakeConfig::default`] (2¹⁶: at most 1.5 MiB a

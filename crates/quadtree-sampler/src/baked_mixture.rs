@@ -15,7 +15,8 @@
 //! band above the horizon that tree k does not reach; the neighbour on the other side,
 //! tilted the other way, covers it, and beyond the last row, where there is none, the last
 //! tree enters twice: rotated, and untilted (R_k about z alone), the second with the share
-//! a row one spacing further on would take. With a defensive share δ of cosine sampling,
+//! a row one spacing further on would take (a spacing no wider than the default grid's, so
+//! that a coarse grid does not starve the band). With a defensive share δ of cosine sampling,
 //! which keeps the density positive wherever f_r·cos θ is,
 //!
 //! pdf(wi, wo) = δ·cos θo/π + (1 − δ)·Σ_k w_k·p_k(R_k⁻¹ wo)  (per unit solid angle),
@@ -205,7 +206,8 @@ impl BakedSampler {
         // mean weight 0.28 % under its albedo, 24 standard errors at 10⁶ samples). Within the
         // grid the next row's tree, tilted the other way, covers it. Here the tree itself
         // stands in for that missing row: untilted (turned about z only, onto `given`'s
-        // azimuth), with the share linear interpolation would give a row one spacing on.
+        // azimuth), with the share linear interpolation would give a row one spacing on (at
+        // most the default grid's spacing: see `beyond_last_row`).
         let beyond = self.grid.beyond_last_row(gc);
         // (Beyond the last row only that row has weight: at most two components, doubled.)
         if beyond > 0.0 && n <= 2 {
