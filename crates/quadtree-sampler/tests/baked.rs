@@ -615,8 +615,10 @@ fn damaged_bake_files_are_typed_errors() {
     }
     // A well-formed file (valid checksum) whose records do not match: an unknown model, and
     // garbage where the payload should be.
+    // (Its length too: the header's word at bytes 12–20, header and checksum left out.)
     let reseal = |mut x: Vec<u8>| {
         let n = x.len();
+        x[12..20].copy_from_slice(&(n as u64 - 24).to_le_bytes());
         let crc = crc32fast::hash(&x[..n - 4]);
         x[n - 4..].copy_from_slice(&crc.to_le_bytes());
         x
@@ -637,17 +639,9 @@ fn damaged_bake_files_are_typed_errors() {
             (len > 0 && text.starts_with(b"n=")).then_some((i, len))
         })
         .expect("the parameter n= in the payload");
-    let evil = [b"n=\x1b[31m".as_slice(), &[b'9'; 100_000]].concat();
-    let mut long_len = Vec::new();
-    let mut v = evil.len();
-    while v >= 0x80 {
-        long_len.push((v as u8 & 0x7f) | 0x80);
-        v >>= 7;
-    }
-    long_len.push(v as u8);
-    let mut long = [&bytes[..at], &long_len, &evil, &bytes[at + 1 + old..]].concat();
-    let payload = (long.len() - 24) as u64;
-    long[12..20].copy_from_slice(&payload.to_le_bytes());
+    // The file's own encoding of a string: its length (LEB128), then its bytes.
+    let evil = postcard::to_allocvec(&["n=\u{1b}[31m", &"9".repeat(100_000)].concat()).unwrap();
+    let long = [&bytes[..at], &evil, &bytes[at + 1 + old..]].concat();
     let e = BakedSampler::from_bytes(&reseal(long)).unwrap_err();
     assert!(matches!(e, BakeFileError::Model(_)), "{e:?}");
     let message = e.to_string();
