@@ -629,11 +629,11 @@ impl Quadtree {
 
     /// SPEC §3's target mode: split, in batches, the live leaves with the largest reducible
     /// wasted volume (box/safety − v1: the safety factor's share cannot be split away) until
-    /// E\[T\] ≤ [`target_limit`] of the target, the budget is spent, or no leaf can split. A batch holds no more
-    /// leaves than the excess volume needs (their wastes × safety, summed): split before the
-    /// last, they cannot have brought E\[T\] to the target (up to the children's v1 moving
-    /// within the integration tolerance), so a batch evaluates in parallel yet never splits
-    /// past it. (Where no child's waste exceeds a leaf later in its batch, the tree is the
+    /// E\[T\] ≤ [`target_limit`] of the target, the budget is spent, or no leaf can split. A
+    /// batch holds no more leaves than the excess volume needs (their wastes × safety,
+    /// summed): split before the last, they cannot have brought E\[T\] to the target (up to
+    /// the children's v1 moving within the integration tolerance), so a batch evaluates in
+    /// parallel yet never splits past it. (Where no child's waste exceeds a leaf later in its batch, the tree is the
     /// one-leaf-at-a-time greedy's.)
     fn refine_to_target<B: Brdf + ?Sized>(
         &mut self,

@@ -189,8 +189,8 @@ fn a_constant_brdf_is_one_node_on_either_map() {
 /// The least target a build accepts, the bounds' safety factor, is reached where every bound
 /// is tight: Lambert is one node on both maps, at the normal and at grazing, its E[T] at most
 /// `target_limit` of the target (compared exactly with the target, the rounding of the
-/// stored volumes left it 8·10⁻⁸ over, and the build split a million nodes for nothing). A lobe cannot
-/// reach it: its build stops at the budget and says so.
+/// stored volumes left it 8·10⁻⁸ over, and the build split a million nodes for nothing). A
+/// lobe cannot reach it: its build stops at the budget and says so.
 #[test]
 fn a_target_at_the_safety_factor_is_reached_where_the_bounds_are_tight() {
     let lambert = model("lambert", &[]);
