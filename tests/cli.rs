@@ -734,6 +734,80 @@ fn bake_reports_trees_a_budget_stopped() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// `brdf bake` checks that its grid covers the material between the trees: the JSON's
+/// `coverage` says how much a baked sample is worth where the mixture is farthest from its
+/// trees, a grid too coarse for the lobe is warned of on stderr (the bake still succeeds:
+/// its sampler is exact, only inefficient), `--coverage-samples 0` skips the check, and an
+/// absurd count is refused before anything is baked.
+#[test]
+fn bake_warns_of_a_grid_too_coarse_for_its_lobe() {
+    let dir = std::env::temp_dir().join(format!("brdf-cli-bake-cover-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("ward.bake");
+    let f = file.to_str().unwrap();
+    let bake = |steps: &str, extra: &[&str]| {
+        let mut args = vec![
+            "bake",
+            "--model",
+            "ward",
+            "--param",
+            "alpha_x=0.05",
+            "--param",
+            "alpha_y=0.5",
+            "--param",
+            "kd=0",
+            "--theta-steps",
+            steps,
+            "--phi-steps",
+            "2",
+            "--out",
+            f,
+        ];
+        args.extend_from_slice(extra);
+        brdf(&args, "")
+    };
+    // 3 × 2 trees: the lobe turns with φi faster than columns 90° apart follow.
+    let o = bake("3", &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let c = &v["coverage"];
+    assert_eq!(c["checked"].as_u64(), Some(3), "{v}");
+    assert_eq!(c["samples"].as_u64(), Some(2048), "{v}");
+    for mode in ["rejection", "warp"] {
+        assert_eq!(c[mode]["above_limit"].as_u64(), Some(3), "{v}");
+        assert!(c[mode]["worst"].as_f64().unwrap() > 100.0, "{v}");
+    }
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("the grid is too coarse for this material")
+            && err.contains("rejection mode at 3 of 3 checked incident directions")
+            && err.contains("--theta-steps"),
+        "{err}"
+    );
+    // Skipped: no check, no warning, `coverage` null.
+    let o = bake("3", &["--coverage-samples", "0"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert!(v["coverage"].is_null(), "{v}");
+    assert!(
+        o.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    // Absurd: exit 2 before baking, the old file left as it was.
+    let before = std::fs::read(&file).unwrap();
+    let o = bake("3", &["--coverage-samples", "4000000000"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&o.stderr)
+            .contains("--coverage-samples 4000000000 must be at most"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert_eq!(std::fs::read(&file).unwrap(), before);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// `brdf bake` writes a bake file and reports it; `sample`, `pdf` and `test` read it with
 /// `--baked` (SPEC §7); the pdf `brdf pdf --baked` prints is the one the records carry.
 #[test]
@@ -771,6 +845,12 @@ fn bake_then_sample_pdf_and_test_baked() {
     }
     assert_eq!(v["grid"]["theta_deg"].as_array().unwrap().len(), 12);
     assert_eq!(v["grid"]["theta_deg"][11].as_f64(), Some(89.0));
+    // The coverage check: 11 cells and the band beyond the last row, none poor.
+    assert_eq!(v["coverage"]["checked"].as_u64(), Some(12), "{v}");
+    for mode in ["rejection", "warp"] {
+        assert_eq!(v["coverage"][mode]["above_limit"].as_u64(), Some(0), "{v}");
+        assert!(v["coverage"][mode]["worst"].as_f64().unwrap() < 2.0, "{v}");
+    }
     // Complete: only the bake file in the directory, no temporary left.
     assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
 

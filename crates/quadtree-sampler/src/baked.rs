@@ -230,7 +230,7 @@ impl Slice {
 /// f*(a, b) = f_r(b, a): the model a non-reciprocal material's [`Role::Radiance`] trees are
 /// built from.
 #[derive(Debug)]
-struct Adjoint<'a>(&'a dyn Brdf);
+pub(crate) struct Adjoint<'a>(pub(crate) &'a dyn Brdf);
 
 impl Brdf for Adjoint<'_> {
     fn name(&self) -> &'static str {
@@ -592,7 +592,7 @@ impl BakedSampler {
         let given = brdf_core::geometry::unit_direction_above(given)?;
         let (tables, _) = self.tables_for(role);
         let mut comps = [crate::baked_mixture::Component::NONE; 4];
-        let n = self.components(tables, given, &mut comps);
+        let n = self.components(self.mode, tables, given, &mut comps);
         Ok(comps[..n]
             .iter()
             .map(|c| {

@@ -131,6 +131,7 @@ impl BakedSampler {
     #[inline(always)]
     pub(crate) fn components(
         &self,
+        mode: BakedMode,
         tables: &Tables,
         given: Vec3,
         out: &mut [Component; 4],
@@ -165,7 +166,7 @@ impl BakedSampler {
             let mc = DVec3::new(-gc.x, -gc.y, gc.z).normalize();
             (gc, (1.0, 0.0), signs, mc)
         };
-        let nearest = match self.mode {
+        let nearest = match mode {
             BakedMode::Rejection => &tables.nearest,
             BakedMode::Warp => &BLEND,
         };
@@ -241,6 +242,7 @@ impl BakedSampler {
     #[inline]
     pub(crate) fn component_pdf(
         &self,
+        mode: BakedMode,
         tables: &Tables,
         adjoint: bool,
         c: &Component,
@@ -255,7 +257,7 @@ impl BakedSampler {
             return 0.0;
         }
         let s = &tables.slices[c.slice];
-        match self.mode {
+        match mode {
             BakedMode::Rejection => {
                 let y = f64::from(luminance(self.table_eval(adjoint, s.wi, w.as_vec3())));
                 y * w.z * s.rejection_scale
@@ -278,10 +280,21 @@ impl BakedSampler {
     /// sample carries and the pdf of the same f32 vector asked for later are bit-identical
     /// (renormalising in f32 could move a direction on a leaf's edge into its neighbour).
     pub(crate) fn pdf_unit(&self, role: Role, given: Vec3, sampled: Vec3) -> f32 {
+        self.pdf_unit_in(self.mode, role, given, sampled)
+    }
+
+    /// [`BakedSampler::pdf_unit`] in `mode`, whichever mode the sampler is set to.
+    pub(crate) fn pdf_unit_in(
+        &self,
+        mode: BakedMode,
+        role: Role,
+        given: Vec3,
+        sampled: Vec3,
+    ) -> f32 {
         let (tables, adjoint) = self.tables_for(role);
         let mut comps = [Component::NONE; 4];
-        let n = self.components(tables, given, &mut comps);
-        self.pdf_of(tables, adjoint, &comps[..n], sampled, None)
+        let n = self.components(mode, tables, given, &mut comps);
+        self.pdf_of(mode, tables, adjoint, &comps[..n], sampled, None)
     }
 
     /// Where the mixture's density at a checked `given` may be concentrated (see
@@ -293,7 +306,7 @@ impl BakedSampler {
     pub(crate) fn density_hints_unit(&self, role: Role, given: Vec3) -> DensityHints {
         let (tables, _) = self.tables_for(role);
         let mut comps = [Component::NONE; 4];
-        let n = self.components(tables, given, &mut comps);
+        let n = self.components(self.mode, tables, given, &mut comps);
         // In rejection mode its densities follow the model's f: a staircase where the model
         // is one. (The warp's are constant on the trees' leaves: cut finer, no harm done.)
         let mut hints = DensityHints {
@@ -321,6 +334,7 @@ impl BakedSampler {
     /// its draw knows, which changes how its density is found, never its value).
     pub(crate) fn pdf_of(
         &self,
+        mode: BakedMode,
         tables: &Tables,
         adjoint: bool,
         comps: &[Component],
@@ -337,7 +351,7 @@ impl BakedSampler {
         let mut p = delta * wo.z * core::f64::consts::FRAC_1_PI;
         for (k, c) in comps[..n].iter().enumerate() {
             let known = drawn.as_ref().filter(|d| d.0 == k).map(|d| &d.1);
-            p += (1.0 - delta) * c.weight * self.component_pdf(tables, adjoint, c, wo, known);
+            p += (1.0 - delta) * c.weight * self.component_pdf(mode, tables, adjoint, c, wo, known);
         }
         p as f32
     }
@@ -361,9 +375,10 @@ impl BakedSampler {
         u: Vec2,
         rng: &mut R,
     ) -> Option<Sample> {
+        let mode = self.mode;
         let (tables, adjoint) = self.tables_for(role);
         let mut comps = [Component::NONE; 4];
-        let n = self.components(tables, given, &mut comps);
+        let n = self.components(mode, tables, given, &mut comps);
         let delta = if n == 0 { 1.0 } else { self.config.defensive };
         let uc = f64::from(uc.clamp(0.0, 1.0));
         let mut trials = 1;
@@ -382,7 +397,7 @@ impl BakedSampler {
             }
             let c = &comps[pick];
             let s = &tables.slices[c.slice];
-            match self.mode {
+            match mode {
                 BakedMode::Rejection => {
                     let leaf = s.tree.select(crate::sampler::descent_uniform(u));
                     // Each trial's point is judged by f where the pdf will look for it: the
@@ -429,7 +444,7 @@ impl BakedSampler {
         if !above_horizon(wo) {
             return None;
         }
-        let pdf = self.pdf_of(tables, adjoint, &comps[..n], wo, drawn);
+        let pdf = self.pdf_of(mode, tables, adjoint, &comps[..n], wo, drawn);
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }

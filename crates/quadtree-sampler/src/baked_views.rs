@@ -56,7 +56,7 @@ impl BrokenPdf {
     pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
         let b = &self.0;
         let mut comps = [Component::NONE; 4];
-        let n = b.components(&b.forward, wi, &mut comps);
+        let n = b.components(b.mode, &b.forward, wi, &mut comps);
         if n < 2 {
             return b.pdf_unit(Role::Importance, wi, wo);
         }
@@ -65,7 +65,7 @@ impl BrokenPdf {
         for c in &mut comps[1..n] {
             c.weight /= rest;
         }
-        b.pdf_of(&b.forward, false, &comps[1..n], wo, None)
+        b.pdf_of(b.mode, &b.forward, false, &comps[1..n], wo, None)
     }
 
     /// The sampler at one wi with the wrong pdf.

@@ -164,12 +164,20 @@ impl core::error::Error for BakeError {}
 pub enum BakedError {
     /// The given direction is NaN, infinite, zero or below the horizon.
     Direction(DirectionError),
+    /// A coverage check asked for this many samples per checked direction: 0, or more than
+    /// [`crate::MAX_COVERAGE_SAMPLES`].
+    CoverageSamples(u32),
 }
 
 impl fmt::Display for BakedError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Self::Direction(e) => write!(f, "given direction: {e}"),
+            Self::CoverageSamples(n) => write!(
+                f,
+                "coverage samples = {n} must be in [1, {}]",
+                crate::MAX_COVERAGE_SAMPLES
+            ),
         }
     }
 }

@@ -66,6 +66,7 @@ extern crate std;
 mod bake_file;
 mod bake_grid;
 mod baked;
+mod baked_coverage;
 mod baked_mixture;
 mod baked_nearest;
 mod baked_views;
@@ -97,6 +98,10 @@ pub use baked::{
     BakeConfig, BakedMode, BakedSampler, DEFAULT_BAKE_NODE_BUDGET, DEFAULT_DEFENSIVE,
     DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, GRID_THETA_MAX_DEG, MAX_BAKE_BYTES, MAX_TREES,
     MixtureTree, Role,
+};
+pub use baked_coverage::{
+    COVERAGE_LIMIT, CellCoverage, Coverage, CoverageConfig, DEFAULT_COVERAGE_SAMPLES,
+    MAX_COVERAGE_SAMPLES,
 };
 pub use baked_nearest::{NEAREST_MAX_RATIO, NEAREST_REJECTION_EXCESS};
 pub use baked_views::{BakedAt, BrokenAt, BrokenPdf, WorldBsdf};

@@ -4,7 +4,9 @@
 use crate::CliError;
 use crate::sample::MapArg;
 use brdf_sampling::quadtree_sampler::{
-    BakeConfig, BakedMode, BakedSampler, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, target_limit,
+    BakeConfig, BakedMode, BakedSampler, COVERAGE_LIMIT, Coverage, CoverageConfig,
+    DEFAULT_COVERAGE_SAMPLES, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, MAX_COVERAGE_SAMPLES, Role,
+    target_limit,
 };
 use brdf_sampling::{Brdf, DiskMap};
 use serde_json::json;
@@ -33,6 +35,13 @@ pub(crate) struct BakeArgs {
     /// 1.02, the bounds' safety factor, below which the expected trials cannot fall).
     #[arg(long, value_name = "T")]
     target_trials: Option<f64>,
+    /// Samples drawn at each checked incident direction when checking that the grid covers
+    /// the material between its trees (a tree built at the centre of every grid cell, and
+    /// halfway from the last row to the horizon, draws them; the JSON's `coverage`, and a
+    /// warning on stderr where a baked sample is worth under 1/4 of an exact one). 0 skips
+    /// the check.
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_COVERAGE_SAMPLES)]
+    coverage_samples: u32,
 }
 
 pub(crate) fn run(
@@ -50,6 +59,13 @@ pub(crate) fn run(
         MapArg::Concentric => DiskMap::Concentric,
     };
     config.build.target_trials = args.target_trials;
+    // Checked before the bake, which may take minutes.
+    if args.coverage_samples > MAX_COVERAGE_SAMPLES {
+        return Err(CliError::Usage(format!(
+            "--coverage-samples {} must be at most {MAX_COVERAGE_SAMPLES} (0 skips the check)",
+            args.coverage_samples
+        )));
+    }
     if brdf.symmetry().isotropic && args.phi_steps != DEFAULT_PHI_STEPS {
         eprintln!(
             "brdf: warning: `{}` is isotropic here: one row of trees serves every φi, --phi-steps is ignored",
@@ -92,6 +108,25 @@ pub(crate) fn run(
             }
         );
     }
+    let coverage = if args.coverage_samples > 0 {
+        let bar = crate::progress::Progress::new("checking coverage", 0);
+        let progress = |done: usize, total: usize| bar.set(done as u64, total as u64);
+        let t0 = Instant::now();
+        let config = CoverageConfig {
+            samples: args.coverage_samples,
+            ..CoverageConfig::default()
+        };
+        let c = baked
+            .coverage_with_progress::<brdf_sampling::rng::Pcg64>(config, &progress)
+            .map_err(|e| CliError::Usage(format!("--coverage-samples: {e}")))?;
+        drop(bar);
+        if let Some(line) = coverage_warning(&c) {
+            eprintln!("brdf: warning: {line}");
+        }
+        Some((c, t0.elapsed().as_secs_f64()))
+    } else {
+        None
+    };
     let grid = baked.grid();
     let summary = json!({
         "model": brdf.name(),
@@ -120,8 +155,78 @@ pub(crate) fn run(
             "rejection": baked.nearest_cells(BakedMode::Rejection).0,
             "cells": grid.cells(),
         },
+        // How much a baked sample is worth between the trees (null when skipped).
+        "coverage": coverage.as_ref().map(|(c, seconds)| coverage_json(c, *seconds)),
     });
     serde_json::to_writer(&mut stdout, &summary).map_err(std::io::Error::from)?;
     writeln!(stdout)?;
     Ok(())
+}
+
+/// The `coverage` object of the bake's JSON: per mode the worst checked incident direction's
+/// relative second moment R of the weight (1 for an exact sampler; null where infinite) and
+/// where it is, and how many checked directions exceed the limit.
+fn coverage_json(c: &Coverage, seconds: f64) -> serde_json::Value {
+    let mode = |m: BakedMode| {
+        c.worst(m).map(|w| {
+            json!({
+                "worst": w.in_mode(m),
+                "theta_deg": w.theta_deg,
+                "phi_deg": w.phi_deg,
+                "role": role_name(w.role),
+                "above_limit": c.above(m, COVERAGE_LIMIT),
+            })
+        })
+    };
+    json!({
+        "samples": c.samples,
+        "checked": c.cells.len(),
+        "unmeasured": c.unmeasured(),
+        "limit": COVERAGE_LIMIT,
+        "rejection": mode(BakedMode::Rejection),
+        "warp": mode(BakedMode::Warp),
+        "seconds": seconds,
+    })
+}
+
+fn role_name(r: Role) -> &'static str {
+    match r {
+        Role::Importance => "importance",
+        Role::Radiance => "radiance",
+    }
+}
+
+/// The warning for a grid too coarse for its material, if any checked direction is past
+/// [`COVERAGE_LIMIT`] in either mode.
+fn coverage_warning(c: &Coverage) -> Option<String> {
+    let parts: Vec<String> = [BakedMode::Rejection, BakedMode::Warp]
+        .into_iter()
+        .filter_map(|m| {
+            let above = c.above(m, COVERAGE_LIMIT);
+            let w = c.worst(m)?;
+            let r = w.in_mode(m)?;
+            (above > 0).then(|| {
+                format!(
+                    "{} mode at {above} of {} checked incident directions (worst R = {r:.3e} at θi {:.2}°, φi {:.2}°{})",
+                    m.name(),
+                    c.cells.len(),
+                    w.theta_deg,
+                    w.phi_deg,
+                    if w.role == Role::Radiance {
+                        ", adjoint trees"
+                    } else {
+                        ""
+                    },
+                )
+            })
+        })
+        .collect();
+    (!parts.is_empty()).then(|| {
+        format!(
+            "the grid is too coarse for this material: between its trees a baked sample is worth \
+             under 1/{COVERAGE_LIMIT} of an exact one (R > {COVERAGE_LIMIT}, R the weight's relative \
+             second moment) in {}; bake with more --theta-steps (and --phi-steps)",
+            parts.join(" and ")
+        )
+    })
 }
