@@ -44,11 +44,14 @@ pub const BAKE_MAGIC: [u8; 8] = *b"BRDFBAKE";
 /// word). Version 6: per transport direction, the grid cells a rejection-mode query answers
 /// with its nearest tree (measured at the bake). Version 7: per tree, the warp's leaves that
 /// spread their shares by a fitted shape (node index and the shape's two words, as a packed
-/// leaf keeps them). Files of versions 5 and 6 are still read ([`OLDEST_READ_VERSION`]):
-/// version 5 holds no nearest-tree cells, and its samplers blend every cell; neither holds
-/// shapes, and their warps spread every leaf uniformly — each as it did when it was
-/// written. A file of any other version is a typed error (SPEC §7): bake it again.
-pub const BAKE_FORMAT_VERSION: u32 = 7;
+/// leaf keeps them). Version 8: version 7's record, whose anisotropic grids are sampled
+/// by the half-vector transport (their nearest-tree cells measured under it). Files of
+/// versions 5 to 7 are still read ([`OLDEST_READ_VERSION`]): version 5 holds no
+/// nearest-tree cells, and its samplers blend every cell; neither 5 nor 6 holds shapes, and
+/// their warps spread every leaf uniformly; up to 7 an anisotropic grid rotates its trees
+/// onto a query's mirror direction — each as it did when it was written. A file of any
+/// other version is a typed error (SPEC §7): bake it again.
+pub const BAKE_FORMAT_VERSION: u32 = 8;
 
 /// The oldest format version read: version 5, whose records are version 6's without the
 /// nearest-tree cells (and version 6's are version 7's without the warp's shapes).
@@ -559,7 +562,8 @@ impl BakedSampler {
             return Err(BakeFileError::Checksum { stored, computed });
         }
         let payload = &bytes[HEADER..body];
-        let record: Record = match word(bytes, 8, 4)? as u32 {
+        let version = word(bytes, 8, 4)? as u32;
+        let record: Record = match version {
             5 => postcard::from_bytes::<RecordV5>(payload)
                 .map_err(|_| BakeFileError::Decode)?
                 .upgrade()
@@ -589,7 +593,17 @@ impl BakedSampler {
             .adjoint
             .map(|a| tables_from(a, &grid, map, grid.len()))
             .transpose()?;
-        Ok(Self::from_parts(brdf, config, grid, forward, adjoint))
+        // Version 8 is version 7's record, sampled by the half-vector transport where the
+        // grid is anisotropic; older files sample as they did (rotations).
+        let half_vector = version >= 8 && !brdf.symmetry().isotropic;
+        Ok(Self::from_parts(
+            brdf,
+            config,
+            grid,
+            forward,
+            adjoint,
+            half_vector,
+        ))
     }
 }
 
@@ -754,6 +768,42 @@ mod tests {
             s.warp = WarpTable::from_raw(s.warp.shares().collect(), s.map).unwrap();
         }
         flat
+    }
+
+    /// A version 7 file of an anisotropic bake (its record is version 8's) still samples
+    /// as it did, by rotations onto the query's mirror direction; a version 8 file by the
+    /// half-vector transport. The two pdfs differ off the grid.
+    #[test]
+    fn a_version_7_anisotropic_file_rotates_its_neighbours() {
+        let ward = brdf_core::registry::create("ward", ["alpha_x=0.05", "alpha_y=0.3"]).unwrap();
+        let config = BakeConfig {
+            theta_steps: 4,
+            phi_steps: 3,
+            ..BakeConfig::default()
+        };
+        let baked = BakedSampler::new(ward.into(), config).unwrap();
+        let bytes = baked.to_bytes();
+        assert_eq!(word(&bytes, 8, 4).unwrap(), 8);
+        let payload = &bytes[HEADER..bytes.len() - TRAILER];
+        let old = BakedSampler::from_bytes(&frame(7, payload)).unwrap();
+        let new = BakedSampler::from_bytes(&bytes).unwrap();
+        assert!(!old.half_vector && new.half_vector && baked.half_vector);
+        let mut rotated = BakedSampler::from_bytes(&bytes).unwrap();
+        rotated.rotate_neighbours_for_testing();
+        let wi = glam::Vec3::new(0.5, 0.3, 0.7).normalize();
+        let mut differ = 0;
+        for k in 0..50 {
+            let a = k as f32 * 0.123;
+            let wo = glam::Vec3::new(0.6 * a.cos(), 0.6 * a.sin(), 0.8);
+            let p_old = old.pdf(wi, wo).unwrap();
+            assert_eq!(p_old.to_bits(), rotated.pdf(wi, wo).unwrap().to_bits());
+            assert_eq!(
+                new.pdf(wi, wo).unwrap().to_bits(),
+                baked.pdf(wi, wo).unwrap().to_bits()
+            );
+            differ += usize::from(new.pdf(wi, wo).unwrap() != p_old);
+        }
+        assert!(differ > 40, "{differ}");
     }
 
     /// A version 6 file (no warp shapes, as this library wrote them before) still reads:

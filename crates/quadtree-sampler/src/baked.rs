@@ -12,8 +12,9 @@
 //! reads, see `warp_table.rs`), so one bake serves both [`BakedMode`]s.
 //!
 //! ## Sampling at a wi off the grid
-//! An exact mixture of the neighbouring grid trees, each rotated onto the query's mirror
-//! direction: see `baked_mixture.rs`.
+//! An exact mixture of the neighbouring grid trees, each carried onto the query: rotated
+//! onto its mirror direction (isotropic grids), or by the half-vector transport
+//! (anisotropic grids): see `baked_mixture.rs`.
 //!
 //! ## Transport roles
 //! The tables sample `wo` (toward the viewer) given `wi` (toward the light): a light path's
@@ -29,8 +30,8 @@
 //! tabulated BSDFs conditioned on wi (Mitsuba's `Marginal2D`, pbrt's `MeasuredBxDF`)
 //! interpolate their tables between slices, which keeps the pdf exact only because the
 //! interpolation is linear in a fixed parameterisation — fine for broad data, but a sharp
-//! lobe then smears between slices. The rotation above keeps sharp lobes sharp between
-//! slices and the mixture keeps the pdf exact.
+//! lobe then smears between slices. The maps above keep sharp lobes sharp between slices
+//! and the mixture keeps the pdf exact.
 
 use crate::bake_grid::{BakeGrid, Nearest};
 use crate::baked_views::{BakedAt, BrokenPdf};
@@ -300,6 +301,11 @@ pub struct BakedSampler {
     /// The delta lobe's choice probability over cos θ of the given direction (see
     /// [`DeltaShare`]); `None` for a model without a delta part or an anisotropic one.
     delta_share: Option<DeltaShare>,
+    /// Whether an anisotropic grid's neighbours reach a query by the half-vector transport
+    /// (`baked_mixture::HalfMap`; bakes of this library and files of format version 8 on)
+    /// rather than by rotations onto its mirror direction (files of versions 5–7, which
+    /// sample as they did). Isotropic grids always rotate.
+    pub(crate) half_vector: bool,
 }
 
 /// The probability with which a baked sampler chooses the model's Dirac lobe, tabulated in
@@ -453,12 +459,20 @@ impl BakedSampler {
                 &eval,
                 config.defensive,
                 config.build.parallel,
+                !symmetry.isotropic,
             );
             Tables { slices, nearest }
         };
         let adjoint = (!symmetry.reciprocal).then(|| tables(slices.split_off(grid.len()), true));
         let forward = tables(slices, false);
-        Ok(Self::from_parts(brdf, config, grid, forward, adjoint))
+        Ok(Self::from_parts(
+            brdf,
+            config,
+            grid,
+            forward,
+            adjoint,
+            !symmetry.isotropic,
+        ))
     }
 
     pub(crate) fn from_parts(
@@ -467,8 +481,10 @@ impl BakedSampler {
         grid: BakeGrid,
         forward: Tables,
         adjoint: Option<Tables>,
+        half_vector: bool,
     ) -> Self {
         Self {
+            half_vector,
             delta_share: DeltaShare::new(&*brdf),
             brdf,
             config,
@@ -629,6 +645,15 @@ impl BakedSampler {
         for t in core::iter::once(&mut self.forward).chain(self.adjoint.as_mut()) {
             t.nearest = Default::default();
         }
+    }
+
+    /// Test-only: an anisotropic grid's neighbours reach a query by rotations onto its
+    /// mirror direction, as bake files before format version 8 do, instead of the half-vector
+    /// transport (still an exact mixture; its nearest-tree cells stay as measured). For
+    /// comparisons and negative controls. Not for production.
+    #[doc(hidden)]
+    pub fn rotate_neighbours_for_testing(&mut self) {
+        self.half_vector = false;
     }
 
     /// How many rejection trials met f > M (should stay 0).

@@ -23,8 +23,10 @@
 //! acceptance 0.1: a fraction of a grid tree's cost); their v1 set which leaf is drawn, so a
 //! check tree is ∝ T within about that tolerance, far below what the check judges. Measured
 //! (2 048 samples a cell): phong n = 1000 on the default grid, R ≤ 1.04 in rejection mode;
-//! Poulin–Fournier n = 1000 on the default 32 × 9 grid, R ≤ 1.42; Poulin–Fournier
-//! n = 28 190 on 5 × 2, R of 4·10⁷ to 6·10⁸ at every cell.
+//! every bench set on its default grid ≤ 1.50 (rejection) and ≤ 1.81 (warp);
+//! Poulin–Fournier's specular part alone, n = 28 190, on 5 × 2, R up to 2.3·10⁵ (rejection)
+//! and 62 (warp), and 4·10⁷ to 7·10⁸ at every cell while anisotropic grids rotated their
+//! trees (see `baked_mixture`'s half-vector transport, which this check found was needed).
 
 use crate::bake_grid::PhiDomain;
 use crate::baked::{Adjoint, BakedMode, BakedSampler, GRID_THETA_MAX_DEG, Role};

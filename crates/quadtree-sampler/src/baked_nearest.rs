@@ -72,6 +72,7 @@ fn agreement(
     target: &Slice,
     other: &Slice,
     to_target: &DMat3,
+    half: bool,
     eval: &(dyn Fn(Vec3, Vec3) -> Vec3 + Sync),
     defensive: f64,
 ) -> (f64, f64) {
@@ -79,6 +80,31 @@ fn agreement(
         return (f64::INFINITY, f64::INFINITY);
     }
     let back = to_target.transpose();
+    // The half-vector transport (`baked_mixture::HalfMap`, anisotropic bakes) between the
+    // two trees' incident directions, both in the folded frame: `other`'s direction carried
+    // onto `target`, and the way back with the density's Jacobian factor.
+    let incident = |s: &Slice| DVec3::new(-s.mirror.x, -s.mirror.y, s.mirror.z);
+    let (kt, ko) = (incident(target), incident(other));
+    let half_of = |a: DVec3, b: DVec3| {
+        let v = a + b;
+        v * (1.0 / v.length())
+    };
+    let from_target = |w: DVec3| -> Option<(DVec3, f64)> {
+        if !half {
+            return Some((back * w, 1.0));
+        }
+        let h = half_of(kt, w);
+        let (oh, th) = (ko.dot(h), kt.dot(h));
+        (oh > 0.0 && th > 0.0).then(|| (2.0 * oh * h - ko, oh / th))
+    };
+    let onto_target = |w: DVec3| -> Option<DVec3> {
+        if !half {
+            return Some(*to_target * w);
+        }
+        let h = half_of(ko, w);
+        let th = kt.dot(h);
+        (th > 0.0).then(|| 2.0 * th * h - kt)
+    };
     let n = POINTS_PER_AXIS;
     let density = |s: &Slice, w: DVec3| {
         f64::from(luminance(eval(s.wi, w.as_vec3()))) * w.z * s.rejection_scale
@@ -106,15 +132,17 @@ fn agreement(
     for (w, own) in warp_points(target, n).chain(cosine) {
         let mixture = 0.5 * (own + w.z * FRAC_1_PI);
         let t = density(target, w);
-        let v = back * w;
-        let r = if v.z > 0.0 { density(other, v) } else { 0.0 };
+        let r = match from_target(w) {
+            Some((v, jacobian)) if v.z > 0.0 => density(other, v) * jacobian,
+            _ => 0.0,
+        };
         let q = defensive * w.z * FRAC_1_PI + keep * r;
         chi += (t - q) * (t - q) / (q * mixture);
         seen.push((t, t / q));
     }
     // The other tree's mass the rotation carries below the horizon.
     let lost: f64 = warp_points(other, n)
-        .filter(|&(w, _)| (to_target * w).z <= 0.0)
+        .filter(|&(w, _)| onto_target(w).is_none_or(|v| v.z <= 0.0))
         .map(|(w, own)| density(other, w) / own)
         .sum();
     let count = (n * n) as f64;
@@ -158,6 +186,7 @@ fn pair_agrees(
     grid: &BakeGrid,
     slices: &[Slice],
     (a, b): (usize, usize),
+    half: bool,
     eval: &(dyn Fn(Vec3, Vec3) -> Vec3 + Sync),
     defensive: f64,
 ) -> bool {
@@ -174,20 +203,22 @@ fn pair_agrees(
     };
     let ok =
         |(chi, ratio): (f64, f64)| chi <= NEAREST_REJECTION_EXCESS && ratio <= NEAREST_MAX_RATIO;
-    ok(agreement(sb, sa, &onto(sa, sb), eval, defensive))
-        && ok(agreement(sa, sb, &onto(sb, sa), eval, defensive))
+    ok(agreement(sb, sa, &onto(sa, sb), half, eval, defensive))
+        && ok(agreement(sa, sb, &onto(sb, sa), half, eval, defensive))
 }
 
 /// The rejection mode's nearest-tree cells of a bake's trees `slices` on `grid` (`eval`: f of
 /// the trees' model, forward or adjoint, as (tree's wi, direction)). Each pair of
 /// neighbouring trees is measured once; in parallel with rayon when `parallel` (the result
-/// does not depend on it).
+/// does not depend on it). `half`: the bake's neighbours reach a query by the half-vector
+/// transport (an anisotropic grid), not by rotations.
 pub(crate) fn measure(
     grid: &BakeGrid,
     slices: &[Slice],
     eval: &(dyn Fn(Vec3, Vec3) -> Vec3 + Sync),
     defensive: f64,
     parallel: bool,
+    half: bool,
 ) -> Nearest {
     // Every θ-pair (rows i, i + 1 of column j) and φ-pair (columns j0, j1 of row i) once.
     let (rows, columns, pc) = (grid.rows(), grid.columns(), grid.phi_cells());
@@ -202,7 +233,7 @@ pub(crate) fn measure(
             (0..rows).flat_map(|i| (0..pc).map(move |j| (at(i, j), at(i, (j + 1) % columns)))),
         );
     }
-    let one = |&p: &(usize, usize)| pair_agrees(grid, slices, p, eval, defensive);
+    let one = |&p: &(usize, usize)| pair_agrees(grid, slices, p, half, eval, defensive);
     let _ = parallel;
     #[cfg(feature = "rayon")]
     let agrees: Vec<bool> = if parallel {
@@ -260,7 +291,7 @@ mod tests {
                 (1.0, 0.0),
                 rotation_between_mirrors_xz(sa.wi.as_dvec3(), sb.wi.as_dvec3()),
             );
-            let measured = agreement(sb, sa, &onto, &eval, delta).0;
+            let measured = agreement(sb, sa, &onto, false, &eval, delta).0;
             let n = 1024;
             let h = 2.0 / n as f64;
             let mut sum = 0.0;

@@ -33,7 +33,8 @@
 //! Beyond the seed, for renderers: [`BakedSampler`] bakes a model once (a grid of trees over
 //! the incident directions, folded by the model's declared symmetries) and answers `sample`,
 //! `pdf` and `eval` at any `wi` with the exact density of what it drew (a mixture of the
-//! neighbouring trees, each rotated onto `wi`'s mirror direction), in both transport roles,
+//! neighbouring trees, each rotated onto `wi`'s mirror direction, or on an anisotropic grid
+//! carried by the half-vector transport), in both transport roles,
 //! in rejection or warp mode, in the local frame or through [`WorldBsdf`]; bake files keep it
 //! on disk ([`BakedSampler::save`], [`BakedSampler::load`]).
 //!

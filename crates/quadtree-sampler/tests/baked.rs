@@ -121,8 +121,12 @@ fn sample_pdf_and_eval_agree_with_pdf_and_eval() {
                     }
                     // The warp proxy over the orthographic square spreads a leaf's share over
                     // all of its square: the part outside the disk (at most 1 − π/4 of a
-                    // one-leaf tree) is lost. Rejection re-draws there.
-                    let least = if mode == BakedMode::Warp { 200 } else { 270 };
+                    // one-leaf tree) is lost. Rejection re-draws there; what it loses is
+                    // what the neighbours' maps carry below the horizon, which on a grid
+                    // this coarse (4 × 2) the half-vector transport does more of for a broad
+                    // anisotropic lobe than a rotation did (Poulin–Fournier at 85°: 266 of
+                    // 300 samples returned, where rotations returned over 270).
+                    let least = if mode == BakedMode::Warp { 200 } else { 255 };
                     assert!(got > least, "{name} {mode:?}: only {got} of 300 samples");
                 }
             }
@@ -597,7 +601,7 @@ fn damaged_bake_files_are_typed_errors() {
         );
     }
     // Another version, a foreign file, random bytes.
-    for other in [1u8, 2, 3, 4, 8] {
+    for other in [1u8, 2, 3, 4, 9] {
         let mut v = bytes.clone();
         v[8] = other;
         assert!(matches!(
@@ -813,35 +817,42 @@ fn bad_input_is_a_typed_error() {
 fn coverage_tells_a_coarse_grid_from_a_fine_one() {
     use quadtree_sampler::{COVERAGE_LIMIT, CoverageConfig, MAX_COVERAGE_SAMPLES};
     let config = CoverageConfig::default();
-    // Ward αx = 0.05, αy = 0.5 on 3 × 2 trees: the lobe's shape turns with φi far faster
-    // than two columns 90° apart follow, and at every checked wi most of its mass lies where
-    // no rotated neighbour puts its own (measured: R of 300 to 4·10⁷, both modes).
+    // Poulin–Fournier's specular part alone, n = 1000, on 5 × 2 trees: its lobe changes
+    // with φi far faster than two columns 90° apart follow, and from θi ≈ 55° on much of its
+    // mass lies where no neighbour (carried by the half-vector transport) puts its own
+    // (measured: R of 18, 1.2·10⁴ and 53 at the last three checked wi in rejection mode,
+    // 1.0·10⁴ and 49 at the last two in warp mode; by rotations up to 3·10⁷).
     let coarse = |parallel: bool| {
         let mut c = BakeConfig {
-            theta_steps: 3,
+            theta_steps: 5,
             phi_steps: 2,
             ..BakeConfig::default()
         };
         c.build.parallel = parallel;
-        BakedSampler::new(model("ward", &["alpha_x=0.05", "alpha_y=0.5", "kd=0"]), c).unwrap()
+        BakedSampler::new(
+            model("poulin-fournier", &["n=1000", "kd=0", "gap=0", "ks=0.25"]),
+            c,
+        )
+        .unwrap()
     };
     let serial = coarse(false);
     let cov = serial.coverage::<Pcg64>(config).unwrap();
     assert_eq!(
         cov.cells.len(),
-        3,
-        "two cells and the band beyond the last row"
+        5,
+        "four cells and the band beyond the last row"
     );
     for mode in [BakedMode::Rejection, BakedMode::Warp] {
-        assert_eq!(
-            cov.above(mode, COVERAGE_LIMIT),
-            3,
+        assert!(
+            cov.above(mode, COVERAGE_LIMIT) >= 2,
             "{mode:?}: {:?}",
             cov.cells
         );
-        for c in &cov.cells {
-            assert!(c.in_mode(mode).unwrap() > 100.0, "{mode:?}: {c:?}");
-        }
+        assert!(
+            cov.worst(mode).unwrap().in_mode(mode).unwrap() > 1e3,
+            "{mode:?}: {:?}",
+            cov.cells
+        );
     }
     // Serial and parallel: the same bits (each checked wi seeds its own generator).
     assert_eq!(coarse(true).coverage::<Pcg64>(config).unwrap(), cov);
@@ -907,6 +918,35 @@ fn coverage_tells_a_coarse_grid_from_a_fine_one() {
                 "{mode:?} at θ {}: check {r}, own samples {own}",
                 c.theta_deg
             );
+        }
+    }
+}
+
+/// An anisotropic grid's neighbours reach a query by the half-vector transport, which
+/// carries a microfacet lobe onto the query's own however its shape turns with φi; the
+/// rotations onto the query's mirror direction that bake files before version 8 use do not
+/// (the negative control). Ward αx = 0.05, αy = 0.5 on 3 × 2 trees, R at every checked wi
+/// (measured: 1.00–1.83 against 300–4·10⁷).
+#[test]
+fn the_half_vector_transport_follows_an_anisotropic_lobe() {
+    use quadtree_sampler::CoverageConfig;
+    let mut baked = BakedSampler::new(
+        model("ward", &["alpha_x=0.05", "alpha_y=0.5", "kd=0"]),
+        BakeConfig {
+            theta_steps: 3,
+            phi_steps: 2,
+            ..BakeConfig::default()
+        },
+    )
+    .unwrap();
+    let config = CoverageConfig::default();
+    let half = baked.coverage::<Pcg64>(config).unwrap();
+    baked.rotate_neighbours_for_testing();
+    let rotated = baked.coverage::<Pcg64>(config).unwrap();
+    for mode in [BakedMode::Rejection, BakedMode::Warp] {
+        for (h, r) in half.cells.iter().zip(&rotated.cells) {
+            let (h, r) = (h.in_mode(mode).unwrap(), r.in_mode(mode).unwrap());
+            assert!(h < 2.0 && r > 100.0, "{mode:?}: half {h}, rotated {r}");
         }
     }
 }
