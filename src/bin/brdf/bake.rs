@@ -120,7 +120,7 @@ pub(crate) fn run(
             .coverage_with_progress::<brdf_sampling::rng::Pcg64>(config, &progress)
             .map_err(|e| CliError::Usage(format!("--coverage-samples: {e}")))?;
         drop(bar);
-        if let Some(line) = coverage_warning(&c) {
+        if let Some(line) = coverage_warning(&c, brdf.symmetry().isotropic) {
             eprintln!("brdf: warning: {line}");
         }
         Some((c, t0.elapsed().as_secs_f64()))
@@ -197,8 +197,8 @@ fn role_name(r: Role) -> &'static str {
 }
 
 /// The warning for a grid too coarse for its material, if any checked direction is past
-/// [`COVERAGE_LIMIT`] in either mode.
-fn coverage_warning(c: &Coverage) -> Option<String> {
+/// [`COVERAGE_LIMIT`] in either mode (naming --phi-steps only where the grid has columns).
+fn coverage_warning(c: &Coverage, isotropic: bool) -> Option<String> {
     let parts: Vec<String> = [BakedMode::Rejection, BakedMode::Warp]
         .into_iter()
         .filter_map(|m| {
@@ -225,8 +225,13 @@ fn coverage_warning(c: &Coverage) -> Option<String> {
         format!(
             "the grid is too coarse for this material: between its trees a baked sample is worth \
              under 1/{COVERAGE_LIMIT} of an exact one (R > {COVERAGE_LIMIT}, R the weight's relative \
-             second moment) in {}; bake with more --theta-steps (and --phi-steps)",
-            parts.join(" and ")
+             second moment) in {}; bake with more {}",
+            parts.join(" and "),
+            if isotropic {
+                "--theta-steps"
+            } else {
+                "--theta-steps and --phi-steps"
+            }
         )
     })
 }
