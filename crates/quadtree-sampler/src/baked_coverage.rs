@@ -2,14 +2,15 @@
 //! sample is worth against an exact one, measured where the mixture is farthest from its
 //! trees ([`BakedSampler::coverage`]).
 //!
-//! Between grid rows (and columns) a query draws from its neighbours' trees rotated onto its
-//! mirror direction. That is exact (the pdf says what was drawn) but only as efficient as
-//! the rotated neighbours are alike to the query's own density T ∝ Y(f_r)·cos θ: a lobe that
-//! changes shape faster than the grid follows (a sharp anisotropic lobe on a coarse grid)
-//! may lie where no neighbour puts its own, and only the defensive share draws it. The
-//! estimator stays unbiased and becomes useless. Measured: Poulin–Fournier n = 28 190 on a
-//! 5 × 2 grid gave a mean weight of a third of its albedo at 3·10⁵ samples, and its own-pdf
-//! χ² passed.
+//! Between grid rows (and columns) a query draws from its neighbours' trees carried onto it
+//! (rotated onto its mirror direction, or by the half-vector transport: `baked_mixture`).
+//! That is exact (the pdf says what was drawn) but only as efficient as the carried
+//! neighbours are alike to the query's own density T ∝ Y(f_r)·cos θ: a lobe that changes
+//! shape faster than the grid follows (a sharp anisotropic lobe on a coarse grid) may lie
+//! where no neighbour puts its own, and only the defensive share draws it. The estimator
+//! stays unbiased and becomes useless. Measured, while anisotropic grids rotated their
+//! trees: Poulin–Fournier n = 28 190 on a 5 × 2 grid gave a mean weight of a third of its
+//! albedo at 3·10⁵ samples, and its own-pdf χ² passed.
 //!
 //! The number that says so is the weight's relative second moment under uniform light,
 //! R = ∫ T²/p dω (T and the mixture's density p both normalised), the variance of a furnace
