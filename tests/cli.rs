@@ -788,6 +788,34 @@ fn bake_warns_of_a_grid_too_coarse_for_its_lobe() {
             && err.contains("--theta-steps and --phi-steps"),
         "{err}"
     );
+    // `brdf test --baked` at a poorly covered wi (θi 77.9°, φi 45°: a checked cell's centre)
+    // says so in its JSON and on stderr, even where its mean-weight test passes.
+    let o = brdf(
+        &[
+            "test",
+            "--baked",
+            f,
+            "--wi",
+            "0.6913324,0.6913324,0.2100452",
+            "--samples",
+            "20000",
+            "--json",
+        ],
+        "",
+    );
+    let t: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert!(
+        t["weight_tests"][0]["coverage"]["rejection"]
+            .as_f64()
+            .unwrap()
+            > 1e3,
+        "{t}"
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("a baked sample is worth 1/") && err.contains("in rejection mode"),
+        "{err}"
+    );
     // Skipped: no check, no warning, `coverage` null.
     let o = bake("5", &["--coverage-samples", "0"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -922,6 +950,13 @@ fn bake_then_sample_pdf_and_test_baked() {
     assert_eq!(t["against"], "own");
     assert_eq!(t["weight_tests"].as_array().unwrap().len(), 2);
     assert!(o.status.success(), "{t}");
+    // R at each tested wi: phong n = 300 on 12 rows is covered.
+    for w in t["weight_tests"].as_array().unwrap() {
+        for mode in ["rejection", "warp"] {
+            let r = w["coverage"][mode].as_f64().unwrap();
+            assert!((0.95..2.0).contains(&r), "{mode}: {w}");
+        }
+    }
 
     // Bad input: a missing, a truncated or a foreign file; a mode a bake has no tables for;
     // a --model that is not the bake's. Each exits 2 with a message.

@@ -180,7 +180,11 @@ impl BakedSampler {
         let total = jobs.len();
         let done = core::sync::atomic::AtomicUsize::new(0);
         let one = |(k, &(role, p)): (usize, &(Role, usize))| {
-            let c = self.check_one::<R>(role, points[p], config, k as u64);
+            let (t, f) = (points[p].0.to_radians(), points[p].1.to_radians());
+            let given = DVec3::new(m::sin(t) * m::cos(f), m::sin(t) * m::sin(f), m::cos(t))
+                .as_vec3()
+                .normalize();
+            let c = self.check_one::<R>(role, given, points[p], config, k as u64);
             let d = done.fetch_add(1, core::sync::atomic::Ordering::Relaxed) + 1;
             progress(d, total);
             c
@@ -198,6 +202,28 @@ impl BakedSampler {
             cells,
             samples: config.samples,
         })
+    }
+
+    /// R at one given direction (local frame; checked: finite, non-zero, above the horizon)
+    /// for a role, both modes, from `config.samples` draws of a tree built there: what
+    /// [`BakedSampler::coverage`] measures at its cells, anywhere (`brdf test --baked` reports
+    /// it at the directions it tests). Its generator is seeded by `config.seed` alone.
+    pub fn coverage_at<R: Rng + SeedableRng>(
+        &self,
+        role: Role,
+        given: glam::Vec3,
+        config: CoverageConfig,
+    ) -> Result<CellCoverage, crate::BakedError> {
+        let given = brdf_core::geometry::unit_direction_above(given)?;
+        if !(1..=MAX_COVERAGE_SAMPLES).contains(&config.samples) {
+            return Err(crate::BakedError::CoverageSamples(config.samples));
+        }
+        let g = given.as_dvec3();
+        let angles = (
+            m::acos(g.z.clamp(-1.0, 1.0)).to_degrees(),
+            m::atan2(g.y, g.x).to_degrees(),
+        );
+        Ok(self.check_one::<R>(role, given, angles, config, 0))
     }
 
     /// The checked (θ, φ) in degrees: every cell's centre, row-major, then the band beyond
@@ -232,14 +258,11 @@ impl BakedSampler {
     fn check_one<R: Rng + SeedableRng>(
         &self,
         role: Role,
+        given: glam::Vec3,
         (theta_deg, phi_deg): (f64, f64),
         config: CoverageConfig,
         index: u64,
     ) -> CellCoverage {
-        let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
-        let given = DVec3::new(m::sin(t) * m::cos(p), m::sin(t) * m::sin(p), m::cos(t))
-            .as_vec3()
-            .normalize();
         let mut cell = CellCoverage {
             theta_deg,
             phi_deg,

@@ -854,6 +854,18 @@ fn coverage_tells_a_coarse_grid_from_a_fine_one() {
             cov.cells
         );
     }
+    // At any one wi: the same measure (a checked cell's centre, and near the normal).
+    let at = |theta: f64| {
+        serial
+            .coverage_at::<Pcg64>(Role::Importance, dir(theta, 45.0), config)
+            .unwrap()
+    };
+    assert!(at(77.875).rejection.unwrap() > 1e3, "{:?}", at(77.875));
+    assert!(at(11.125).rejection.unwrap() < 2.0, "{:?}", at(11.125));
+    assert!(matches!(
+        serial.coverage_at::<Pcg64>(Role::Importance, Vec3::new(0.0, 0.0, -1.0), config),
+        Err(BakedError::Direction(_))
+    ));
     // Serial and parallel: the same bits (each checked wi seeds its own generator).
     assert_eq!(coarse(true).coverage::<Pcg64>(config).unwrap(), cov);
     for samples in [0, MAX_COVERAGE_SAMPLES + 1] {

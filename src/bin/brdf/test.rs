@@ -7,6 +7,9 @@ use crate::sample::{self, SamplerOptions};
 use brdf_sampling::Brdf;
 use brdf_sampling::geometry::spherical_direction;
 use brdf_sampling::glam::Vec3;
+use brdf_sampling::quadtree_sampler::{
+    BakedMode, COVERAGE_LIMIT, CellCoverage, CoverageConfig, Role,
+};
 use brdf_sampling::validate::{
     self as validate, CellGrid, ChiSquare, Event, Settings, TestOutcome, Verdict,
 };
@@ -303,6 +306,41 @@ pub(crate) fn run(
     let verdict = report.verdict();
     let alpha = report.alpha_per_test;
     let weight_tests = &report.weight_tests;
+    // How much a baked sample is worth at each tested wi (R, see `brdf bake`'s coverage):
+    // the mean-weight test can pass on a heavy tail that R shows.
+    let coverage: Vec<Option<CellCoverage>> = match &args.options.loaded {
+        Some(bake) => weight_tests
+            .iter()
+            .map(|w| {
+                w.wi.and_then(|wi| {
+                    bake.coverage_at::<brdf_sampling::rng::Pcg64>(
+                        Role::Importance,
+                        wi,
+                        CoverageConfig::default(),
+                    )
+                    .ok()
+                })
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    let tested = match args.options.mode {
+        sample::Mode::Warp => BakedMode::Warp,
+        _ => BakedMode::Rejection,
+    };
+    for (w, c) in weight_tests.iter().zip(&coverage) {
+        if let (Some(wi), Some(r)) = (w.wi, c.and_then(|c| c.in_mode(tested)))
+            && (r > COVERAGE_LIMIT || r.is_nan())
+        {
+            eprintln!(
+                "brdf: warning: at wi {:.4},{:.4},{:.4} a baked sample is worth 1/{r:.3e} of an exact one in {} mode (R = {r:.3e} > {COVERAGE_LIMIT}): the mean weight's standard error understates a heavy tail there; bake with more --theta-steps (and --phi-steps)",
+                wi.x,
+                wi.y,
+                wi.z,
+                tested.name(),
+            );
+        }
+    }
     let rows: Vec<Row> = report
         .tests
         .into_iter()
@@ -366,13 +404,19 @@ pub(crate) fn run(
             "mode": mode,
             "against": format!("{:?}", against).to_lowercase(),
             "baked": baked,
-            "weight_tests": weight_tests.iter().map(|w| json!({
+            "weight_tests": weight_tests.iter().enumerate().map(|(k, w)| json!({
                 "wi": w.wi.map(|wi| [wi.x, wi.y, wi.z]),
                 "mean_weight": w.mean,
                 "standard_error": w.standard_error,
                 "albedo": w.albedo,
                 "p_value": w.p_value,
                 "passed": w.passed,
+                // R in both modes at this wi (null where unmeasured).
+                "coverage": coverage.get(k).copied().flatten().map(|c| json!({
+                    "rejection": c.rejection,
+                    "warp": c.warp,
+                    "limit": COVERAGE_LIMIT,
+                })),
             })).collect::<Vec<_>>(),
             "samples": args.samples,
             "alpha": args.alpha,
