@@ -567,3 +567,64 @@ impl BakedSampler {
         Sample::continuous(wo, f, pdf).map(|s| Sample { trials, ..s })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The half-vector transport's two maps are each other's inverse, and its density factor
+    /// is the ratio of solid angles the map makes: against finite differences (a small
+    /// triangle around a tree direction and its image), over tree and query directions across
+    /// the hemisphere and a folded (reflected) local frame. The factor inverted, (g·h)/(k·h),
+    /// fails it.
+    #[test]
+    fn the_half_vector_maps_invert_and_their_factor_is_the_jacobian() {
+        let dir = |t: f64, p: f64| {
+            let (t, p) = (t.to_radians(), p.to_radians());
+            DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
+        };
+        let mut checked = 0;
+        for (tree, given) in [
+            ((30.0, 0.0), (35.0, 10.0)),
+            ((0.0, 0.0), (60.0, 80.0)),
+            ((80.0, 45.0), (88.0, 30.0)),
+        ] {
+            for unfold in [DVec3::ONE, DVec3::new(-1.0, 1.0, 1.0)] {
+                let m = HalfMap {
+                    tree: dir(tree.0, tree.1),
+                    given: dir(given.0, given.1),
+                    unfold,
+                };
+                for (t, p) in [
+                    (5.0, 0.0),
+                    (25.0, 170.0),
+                    (40.0, 20.0),
+                    (60.0, 250.0),
+                    (75.0, 300.0),
+                ] {
+                    let w = dir(t, p);
+                    let Some(wo) = m.forward(w) else { continue };
+                    let (back, factor) = m.back(wo).expect("a carried direction maps back");
+                    assert!((back - w).length() < 1e-12, "{back} vs {w}");
+                    assert!((wo.length() - 1.0).abs() < 1e-12);
+                    // Two tangent steps at w and their images.
+                    let e = 1e-6;
+                    let t1 = w.any_orthonormal_vector();
+                    let t2 = w.cross(t1);
+                    let step = |v: DVec3| (w + e * v).normalize();
+                    let (w1, w2) = (step(t1), step(t2));
+                    let (o1, o2) = (m.forward(w1).unwrap(), m.forward(w2).unwrap());
+                    let area_tree = (w1 - w).cross(w2 - w).length();
+                    let area_local = (o1 - wo).cross(o2 - wo).length();
+                    let numeric = area_tree / area_local;
+                    assert!(
+                        (factor / numeric - 1.0).abs() < 1e-4,
+                        "tree {tree:?} given {given:?} w ({t}, {p}): factor {factor}, numeric {numeric}"
+                    );
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked >= 25, "{checked}");
+    }
+}
