@@ -141,7 +141,7 @@ impl HalfMap {
     /// s = k + w (the half vector unnormalised), the reflection is 2(g·s)/(s·s)·s − g: one
     /// division, no square root.
     #[inline(always)]
-    fn forward(&self, w: DVec3) -> Option<DVec3> {
+    pub(crate) fn forward(&self, w: DVec3) -> Option<DVec3> {
         let s = self.tree + w;
         let gs = self.given.dot(s);
         (gs > 0.0).then(|| ((2.0 * gs / s.length_squared()) * s - self.given) * self.unfold)
@@ -151,7 +151,7 @@ impl HalfMap {
     /// (k·h)/(g·h), or `None` where no tree direction maps to it. With s = g + wo, the
     /// direction is 2(k·s)/(s·s)·s − k and the factor (k·s)/(g·s): both from one reciprocal.
     #[inline(always)]
-    fn back(&self, wo: DVec3) -> Option<(DVec3, f64)> {
+    pub(crate) fn back(&self, wo: DVec3) -> Option<(DVec3, f64)> {
         let s = self.given + wo * self.unfold;
         let (ks, gs, ss) = (self.tree.dot(s), self.given.dot(s), s.length_squared());
         if !(ks > 0.0 && gs > 0.0) {

@@ -42,6 +42,7 @@ use crate::bake_grid::{
     BakeGrid, Nearest, PhiDomain, isotropic_to_local, rotation_arc, rotation_between_mirrors_xz,
 };
 use crate::baked::Slice;
+use crate::baked_mixture::HalfMap;
 use alloc::vec::Vec;
 use brdf_core::geometry::luminance;
 use core::f64::consts::FRAC_1_PI;
@@ -80,30 +81,23 @@ fn agreement(
         return (f64::INFINITY, f64::INFINITY);
     }
     let back = to_target.transpose();
-    // The half-vector transport (`baked_mixture::HalfMap`, anisotropic bakes) between the
-    // two trees' incident directions, both in the folded frame: `other`'s direction carried
-    // onto `target`, and the way back with the density's Jacobian factor.
+    // On an anisotropic grid, `other` reaches `target` by the half-vector transport the
+    // mixture uses (`HalfMap`, both trees in the folded frame): `onto_target` carries one of
+    // its directions there, `from_target` finds the direction a target one comes from and
+    // the density's Jacobian factor.
     let incident = |s: &Slice| DVec3::new(-s.mirror.x, -s.mirror.y, s.mirror.z);
-    let (kt, ko) = (incident(target), incident(other));
-    let half_of = |a: DVec3, b: DVec3| {
-        let v = a + b;
-        v * (1.0 / v.length())
+    let map = half.then(|| HalfMap {
+        tree: incident(other),
+        given: incident(target),
+        unfold: DVec3::ONE,
+    });
+    let from_target = |w: DVec3| match &map {
+        None => Some((back * w, 1.0)),
+        Some(m) => m.back(w),
     };
-    let from_target = |w: DVec3| -> Option<(DVec3, f64)> {
-        if !half {
-            return Some((back * w, 1.0));
-        }
-        let h = half_of(kt, w);
-        let (oh, th) = (ko.dot(h), kt.dot(h));
-        (oh > 0.0 && th > 0.0).then(|| (2.0 * oh * h - ko, oh / th))
-    };
-    let onto_target = |w: DVec3| -> Option<DVec3> {
-        if !half {
-            return Some(*to_target * w);
-        }
-        let h = half_of(ko, w);
-        let th = kt.dot(h);
-        (th > 0.0).then(|| 2.0 * th * h - kt)
+    let onto_target = |w: DVec3| match &map {
+        None => Some(*to_target * w),
+        Some(m) => m.forward(w),
     };
     let n = POINTS_PER_AXIS;
     let density = |s: &Slice, w: DVec3| {
@@ -140,7 +134,7 @@ fn agreement(
         chi += (t - q) * (t - q) / (q * mixture);
         seen.push((t, t / q));
     }
-    // The other tree's mass the rotation carries below the horizon.
+    // The other tree's mass its map carries below the horizon.
     let lost: f64 = warp_points(other, n)
         .filter(|&(w, _)| onto_target(w).is_none_or(|v| v.z <= 0.0))
         .map(|(w, own)| density(other, w) / own)
