@@ -227,11 +227,16 @@ fn coverage_warning(c: &Coverage, isotropic: bool) -> Option<String> {
              under 1/{COVERAGE_LIMIT} of an exact one (R > {COVERAGE_LIMIT}, R the weight's relative \
              second moment) in {}; bake with more {}",
             parts.join(" and "),
-            if isotropic {
-                "--theta-steps"
-            } else {
-                "--theta-steps and --phi-steps"
-            }
+            finer_grid_flags(isotropic)
         )
     })
+}
+
+/// The flags that refine a bake's grid: --phi-steps only where the grid has columns.
+pub(crate) fn finer_grid_flags(isotropic: bool) -> &'static str {
+    if isotropic {
+        "--theta-steps"
+    } else {
+        "--theta-steps and --phi-steps"
+    }
 }

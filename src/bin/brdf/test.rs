@@ -333,11 +333,12 @@ pub(crate) fn run(
             && (r > COVERAGE_LIMIT || r.is_nan())
         {
             eprintln!(
-                "brdf: warning: at wi {:.4},{:.4},{:.4} a baked sample is worth 1/{r:.3e} of an exact one in {} mode (R = {r:.3e} > {COVERAGE_LIMIT}): the mean weight's standard error understates a heavy tail there; bake with more --theta-steps (and --phi-steps)",
+                "brdf: warning: at wi {:.4},{:.4},{:.4} a baked sample is worth 1/{r:.3e} of an exact one in {} mode (R = {r:.3e} > {COVERAGE_LIMIT}): the mean weight's standard error understates a heavy tail there; bake with more {}",
                 wi.x,
                 wi.y,
                 wi.z,
                 tested.name(),
+                crate::bake::finer_grid_flags(brdf.symmetry().isotropic),
             );
         }
     }
