@@ -22,7 +22,7 @@ use crate::bake_grid::{BakeGrid, Nearest, PhiDomain};
 use crate::baked::{BakeConfig, BakedSampler, Slice, Tables};
 use crate::config::{BuildConfig, IntegrationRule};
 use crate::packed::PackedTree;
-use crate::warp_table::WarpTable;
+use crate::warp_table::{RIM_FLAG, WarpTable};
 use alloc::string::{String, ToString};
 use alloc::sync::Arc;
 use alloc::vec::Vec;
@@ -49,9 +49,12 @@ pub const BAKE_MAGIC: [u8; 8] = *b"BRDFBAKE";
 /// versions 5 to 7 are still read ([`OLDEST_READ_VERSION`]): version 5 holds no
 /// nearest-tree cells, and its samplers blend every cell; neither 5 nor 6 holds shapes, and
 /// their warps spread every leaf uniformly; up to 7 an anisotropic grid rotates its trees
-/// onto a query's mirror direction — each as it did when it was written. A file of any
-/// other version is a typed error (SPEC §7): bake it again.
-pub const BAKE_FORMAT_VERSION: u32 = 8;
+/// onto a query's mirror direction — each as it did when it was written. Version 9:
+/// version 8's record, whose warps (orthographic trees) spread the share of a leaf on the
+/// disk's rim uniformly in solid angle over its part of the hemisphere,
+/// its shape fitted in that chart; up to 8 such a leaf spreads over its square. A file of
+/// any other version is a typed error (SPEC §7): bake it again.
+pub const BAKE_FORMAT_VERSION: u32 = 9;
 
 /// The oldest format version read: version 5, whose records are version 6's without the
 /// nearest-tree cells (and version 6's are version 7's without the warp's shapes).
@@ -380,7 +383,10 @@ fn slice_record(s: &Slice) -> SliceRecord {
         warp_shapes: s
             .warp
             .shaped()
-            .map(|(i, shape)| (i, shape.to_bits(), shape.fine_bits()))
+            .map(|(i, shape, chart)| {
+                let flag = if chart { RIM_FLAG } else { 0 };
+                (i, shape.to_bits() | flag, shape.fine_bits())
+            })
             .collect(),
     }
 }
@@ -395,11 +401,14 @@ fn tables_record(t: &Tables) -> TablesRecord {
     }
 }
 
+/// One transport direction's tables from its record; `rim_charts`: whether the warps' rim
+/// leaves spread their shares in solid angle (version 9 on, [`crate::rim`]).
 fn tables_from(
     record: TablesRecord,
     grid: &BakeGrid,
     map: DiskMap,
     first_index: usize,
+    rim_charts: bool,
 ) -> Result<Tables, BakeFileError> {
     let TablesRecord { slices, nearest } = record;
     let nearest = Nearest {
@@ -410,7 +419,7 @@ fn tables_from(
         return Err(BakeFileError::GridMismatch);
     }
     Ok(Tables {
-        slices: slices_from(slices, grid, map, first_index)?,
+        slices: slices_from(slices, grid, map, first_index, rim_charts)?,
         nearest,
     })
 }
@@ -420,6 +429,7 @@ fn slices_from(
     grid: &BakeGrid,
     map: DiskMap,
     first_index: usize,
+    rim_charts: bool,
 ) -> Result<Vec<Slice>, BakeFileError> {
     if records.len() != grid.len() {
         return Err(BakeFileError::GridMismatch);
@@ -440,8 +450,11 @@ fn slices_from(
         let shapes = warp_shapes
             .iter()
             .map(|&(i, bits, fine)| {
+                // From version 9 a shape's first word may mark a leaf's solid-angle chart.
+                let chart = rim_charts && bits & RIM_FLAG != 0;
+                let bits = if rim_charts { bits & !RIM_FLAG } else { bits };
                 crate::proposal::Shape::from_bits(bits, fine)
-                    .map(|s| (i, s))
+                    .map(|s| (i, s, chart))
                     .ok_or("a warp shape whose words no shape writes")
             })
             .collect::<Result<Vec<_>, _>>()
@@ -588,10 +601,13 @@ impl BakedSampler {
             return Err(BakeFileError::GridMismatch);
         }
         let map = config.build.map;
-        let forward = tables_from(record.forward, &grid, map, 0)?;
+        // Version 9 is version 8's record, whose warps spread their rim leaves in solid
+        // angle; older files' rim leaves spread over their squares, as they did.
+        let rim_charts = version >= 9;
+        let forward = tables_from(record.forward, &grid, map, 0, rim_charts)?;
         let adjoint = record
             .adjoint
-            .map(|a| tables_from(a, &grid, map, grid.len()))
+            .map(|a| tables_from(a, &grid, map, grid.len(), rim_charts))
             .transpose()?;
         // Version 8 is version 7's record, sampled by the half-vector transport where the
         // grid is anisotropic; older files sample as they did (rotations).
@@ -741,7 +757,7 @@ pub use files::{BakeIoError, temporary_beside, write_atomically};
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::BakeConfig;
+    use crate::{BakeConfig, BakedMode};
 
     /// A phong bake of `params` on `theta_steps` rows.
     fn phong_bake(params: &[&str], theta_steps: u16) -> BakedSampler {
@@ -770,6 +786,57 @@ mod tests {
         flat
     }
 
+    /// A version 9 payload as version 8 would have written it: the warp leaves that spread
+    /// in their solid-angle charts dropped from the stored shapes (flat over their squares).
+    fn chartless(payload: &[u8]) -> Vec<u8> {
+        let mut record: Record = postcard::from_bytes(payload).unwrap();
+        for t in core::iter::once(&mut record.forward).chain(record.adjoint.as_mut()) {
+            for s in &mut t.slices {
+                s.warp_shapes.retain(|&(_, bits, _)| bits & RIM_FLAG == 0);
+            }
+        }
+        postcard::to_allocvec(&record).unwrap()
+    }
+
+    /// A version 8 file reads its warps' rim leaves flat over their squares (as written),
+    /// a version 9 file in their solid-angle charts: the same rejection sampler, and warp
+    /// pdfs that differ near the rim.
+    #[test]
+    fn a_version_8_file_spreads_its_rim_leaves_over_their_squares() {
+        let ct = brdf_core::registry::create("cook-torrance", ["m=1", "kd=0.2"]).unwrap();
+        let config = BakeConfig {
+            theta_steps: 4,
+            ..BakeConfig::default()
+        };
+        let baked = BakedSampler::new(ct.into(), config).unwrap();
+        let bytes = baked.to_bytes();
+        let payload = &bytes[HEADER..bytes.len() - TRAILER];
+        let charted = baked
+            .tables()
+            .0
+            .slices
+            .iter()
+            .map(|s| s.warp.shaped().filter(|p| p.2).count());
+        assert!(charted.sum::<usize>() >= 4);
+        // A version 8 reader refuses a chart's mark.
+        assert!(BakedSampler::from_bytes(&frame(8, payload)).is_err());
+        let mut old = BakedSampler::from_bytes(&frame(8, &chartless(payload))).unwrap();
+        let mut new = BakedSampler::from_bytes(&bytes).unwrap();
+        let wi = glam::Vec3::new(0.999, 0.0, 0.03).normalize();
+        let mut differ = 0;
+        for k in 0..50 {
+            let a = k as f32 * 0.123;
+            let wo = glam::Vec3::new(0.99 * a.cos(), 0.99 * a.sin(), 0.141);
+            assert_eq!(old.pdf(wi, wo).unwrap(), new.pdf(wi, wo).unwrap());
+            old.set_mode(BakedMode::Warp);
+            new.set_mode(BakedMode::Warp);
+            differ += usize::from(old.pdf(wi, wo).unwrap() != new.pdf(wi, wo).unwrap());
+            old.set_mode(BakedMode::Rejection);
+            new.set_mode(BakedMode::Rejection);
+        }
+        assert!(differ > 25, "{differ}");
+    }
+
     /// A version 7 file of an anisotropic bake (its record is version 8's) still samples
     /// as it did, by rotations onto the query's mirror direction; a version 8 file by the
     /// half-vector transport. The two pdfs differ off the grid.
@@ -783,9 +850,9 @@ mod tests {
         };
         let baked = BakedSampler::new(ward.into(), config).unwrap();
         let bytes = baked.to_bytes();
-        assert_eq!(word(&bytes, 8, 4).unwrap(), 8);
+        assert_eq!(word(&bytes, 8, 4).unwrap(), u64::from(BAKE_FORMAT_VERSION));
         let payload = &bytes[HEADER..bytes.len() - TRAILER];
-        let old = BakedSampler::from_bytes(&frame(7, payload)).unwrap();
+        let old = BakedSampler::from_bytes(&frame(7, &chartless(payload))).unwrap();
         let new = BakedSampler::from_bytes(&bytes).unwrap();
         assert!(!old.half_vector && new.half_vector && baked.half_vector);
         let mut rotated = BakedSampler::from_bytes(&bytes).unwrap();

@@ -198,9 +198,11 @@ impl Slice {
     fn build(table: &dyn Brdf, wi: Vec3, config: BuildConfig) -> Result<Self, BuildError> {
         let q = Quadtree::from_unit(table, wi, config)?;
         let mut warp = WarpTable::new(&q);
-        warp.fit_shapes(q.map(), |w| {
-            f64::from(brdf_core::geometry::luminance(table.eval(wi, w.as_vec3())))
-        });
+        warp.fit_shapes(
+            q.map(),
+            |w| f64::from(brdf_core::geometry::luminance(table.eval(wi, w.as_vec3()))),
+            true,
+        );
         Ok(Self::new(wi, PackedTree::new(&q), warp))
     }
 

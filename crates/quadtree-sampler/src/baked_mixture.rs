@@ -367,8 +367,8 @@ impl BakedSampler {
                     // the rim band (see the per-wi warp's `square_point`).
                     let p = s.map.direction_to_square_f64(w);
                     let d = match drawn {
-                        Some(Drawn::Warp(l)) if l.contains(p) => l.density_at(p),
-                        _ => s.warp.density(p),
+                        Some(Drawn::Warp(l)) if l.contains(p) => l.density_at(p, w.z),
+                        _ => s.warp.density(p, w.z),
                     };
                     d * s.warp_scale * w.z
                 }

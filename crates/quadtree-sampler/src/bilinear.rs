@@ -22,7 +22,9 @@
 
 use crate::chart::Rect;
 use crate::proposal::Shape;
+use crate::rim::{RimChart, SectorChart};
 use brdf_core::DiskMap;
+use brdf_core::geometry::lift_to_grazing_floor;
 use glam::{DVec2, DVec3};
 
 /// The least level of a warp shape (of 63): 4, so the proxy is nowhere below 1/16 of its
@@ -51,6 +53,13 @@ pub(crate) fn leaf_density(density: f64, shape: &Shape, rect: &Rect, p: DVec2) -
 /// point toward it (what the shape continues there is lost with the square's corners, as
 /// the flat proxy's is); a test point outside it does not count.
 pub(crate) fn fit_leaf(map: DiskMap, rect: &Rect, f: impl Fn(DVec3) -> f64) -> Shape {
+    fit_leaf_scored(map, rect, f).0
+}
+
+/// [`fit_leaf`], with the choice's score: Σ g²/S over the test points, g = f times the
+/// square's area, which is (up to a factor every candidate proxy of the leaf shares) the
+/// weight's second moment ∫T²/q dω under this proxy — what [`choose_proxy`] compares.
+pub(crate) fn fit_leaf_scored(map: DiskMap, rect: &Rect, f: impl Fn(DVec3) -> f64) -> (Shape, f64) {
     let side = rect.max - rect.min;
     let at = |t: DVec2| rect.min + side * t;
     let control: [f64; 9] = core::array::from_fn(|k| {
@@ -59,7 +68,7 @@ pub(crate) fn fit_leaf(map: DiskMap, rect: &Rect, f: impl Fn(DVec3) -> f64) -> S
             Some(w) => f(w),
             None => {
                 let r = p.length();
-                f(DVec3::new(p.x / r, p.y / r, 0.0))
+                f(lift_to_grazing_floor(DVec3::new(p.x / r, p.y / r, 0.0)))
             }
         }
     });
@@ -67,35 +76,103 @@ pub(crate) fn fit_leaf(map: DiskMap, rect: &Rect, f: impl Fn(DVec3) -> f64) -> S
         let t = DVec2::new(((k % 4) as f64 + 0.5) / 4.0, ((k / 4) as f64 + 0.5) / 4.0);
         map.square_to_direction_f64(at(t)).map(|w| (t, f(w)))
     });
-    fit(control, &tests)
+    let area = side.x * side.y;
+    let (shape, score) = fit_scored(control, &tests);
+    (shape, score * area * area)
 }
 
+/// [`fit_leaf`] for a leaf that spreads its share in its rim chart ([`crate::rim`]): the
+/// shape over the chart's unit square that follows f·cos θ times the chart's measure at each
+/// point (what is left of f·cos θ over the chart's own density). A point on the rim takes
+/// f at the grazing floor there; one at an end of the chart's x-range, where the leaf's
+/// t-range closes, takes 0.
+pub(crate) fn fit_rim_leaf(chart: &RimChart, f: impl Fn(DVec3) -> f64) -> (Shape, f64) {
+    let value = |u: DVec2| {
+        let p = chart.point(u);
+        let (_, measure) = chart.unit(p)?;
+        let r2 = p.length_squared();
+        let w = if r2 < 1.0 {
+            DVec3::new(p.x, p.y, brdf_core::math::sqrt(1.0 - r2))
+        } else {
+            let r = brdf_core::math::sqrt(r2);
+            DVec3::new(p.x / r, p.y / r, 0.0)
+        };
+        let w = lift_to_grazing_floor(w);
+        Some(f(w) * w.z * measure)
+    };
+    let control: [f64; 9] = core::array::from_fn(|k| {
+        value(DVec2::new((k % 3) as f64 * 0.5, (k / 3) as f64 * 0.5)).unwrap_or(0.0)
+    });
+    let tests: [Option<(DVec2, f64)>; 16] = core::array::from_fn(|k| {
+        let t = DVec2::new(((k % 4) as f64 + 0.5) / 4.0, ((k / 4) as f64 + 0.5) / 4.0);
+        value(t).map(|v| (t, v))
+    });
+    fit_scored(control, &tests)
+}
+
+/// [`fit_leaf`] for a disk sector spread in solid angle ([`SectorChart`]): the shape over
+/// its unit (z, φ) square that follows f·cos θ (the chart's density being uniform in solid
+/// angle); a point on the rim takes f at the grazing floor there.
+pub(crate) fn fit_sector(chart: &SectorChart, f: impl Fn(DVec3) -> f64) -> (Shape, f64) {
+    let span = chart.span();
+    let value = |u: DVec2| {
+        let p = chart.point(u);
+        let z = u.x.max(0.0);
+        let w = lift_to_grazing_floor(DVec3::new(p.x, p.y, z));
+        f(w) * w.z * span
+    };
+    let control: [f64; 9] =
+        core::array::from_fn(|k| value(DVec2::new((k % 3) as f64 * 0.5, (k / 3) as f64 * 0.5)));
+    let tests: [Option<(DVec2, f64)>; 16] = core::array::from_fn(|k| {
+        let t = DVec2::new(((k % 4) as f64 + 0.5) / 4.0, ((k / 4) as f64 + 0.5) / 4.0);
+        Some((t, value(t)))
+    });
+    fit_scored(control, &tests)
+}
+
+/// Of two proxies for one leaf, with their scores, whether the second (the solid-angle
+/// chart, [`crate::rim`]) is taken: where it lowers the score by [`MIN_GAIN`] or more.
+pub(crate) fn choose_chart(old: f64, chart: f64) -> bool {
+    old.is_finite() && chart.is_finite() && chart < (1.0 - MIN_GAIN) * old
+}
+
+#[cfg(test)]
 /// [`fit_leaf`]'s choice from f at the control points (index 3j + i at t = (i/2, j/2)) and
 /// at test points (t, f; `None`: a point that does not count).
 pub(crate) fn fit(control: [f64; 9], tests: &[Option<(DVec2, f64)>]) -> Shape {
+    fit_scored(control, tests).0
+}
+
+/// [`fit`], with the chosen proxy's Σ f²/S over the test points (infinite where a value
+/// is negative or not finite).
+pub(crate) fn fit_scored(control: [f64; 9], tests: &[Option<(DVec2, f64)>]) -> (Shape, f64) {
     let ok = |x: f64| x.is_finite() && x >= 0.0;
-    if !control.iter().all(|&x| ok(x)) || !tests.iter().flatten().all(|&(_, x)| ok(x)) {
-        return Shape::FLAT;
+    if !tests.iter().flatten().all(|&(_, x)| ok(x)) {
+        return (Shape::FLAT, f64::INFINITY);
+    }
+    // Σ f²/q over the points for each proxy, both carrying the same share (a common
+    // factor the comparison drops): the weight's second moment there.
+    let flat: f64 = tests.iter().flatten().map(|&(_, f)| f * f).sum();
+    if !control.iter().all(|&x| ok(x)) {
+        return (Shape::FLAT, flat);
     }
     let high = control.iter().copied().fold(0.0, f64::max);
     if high <= 0.0 {
-        return Shape::FLAT;
+        return (Shape::FLAT, flat);
     }
     let levels = control.map(|v| (v / high * 63.0 + 0.5).clamp(f64::from(FLOOR_LEVEL), 63.0) as u8);
     let Some(shape) = Shape::from_grid(levels).filter(|s| !s.is_flat()) else {
-        return Shape::FLAT;
+        return (Shape::FLAT, flat);
     };
-    // Σ f²/q over the points for each proxy, both carrying the same share (a common
-    // factor the comparison drops): the weight's second moment there.
-    let (mut flat, mut shaped) = (0.0, 0.0);
-    for &(t, f) in tests.iter().flatten() {
-        flat += f * f;
-        shaped += f * f / shape.density(t);
-    }
+    let shaped: f64 = tests
+        .iter()
+        .flatten()
+        .map(|&(t, f)| f * f / shape.density(t))
+        .sum();
     if flat > 0.0 && shaped < (1.0 - MIN_GAIN) * flat {
-        shape
+        (shape, shaped)
     } else {
-        Shape::FLAT
+        (Shape::FLAT, flat)
     }
 }
 

@@ -83,6 +83,7 @@ mod factory;
 pub mod integrate;
 mod packed;
 pub mod proposal;
+mod rim;
 mod sampler;
 mod table;
 mod tree;

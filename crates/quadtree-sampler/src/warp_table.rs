@@ -50,6 +50,7 @@
 use crate::bilinear::leaf_density;
 use crate::chart::{Rect, child_column, child_index, child_row};
 use crate::proposal::Shape;
+use crate::rim::{RimChart, SectorChart};
 use alloc::vec::Vec;
 use glam::{DVec2, DVec3};
 
@@ -59,6 +60,36 @@ pub(crate) const WARP_LEAF: u32 = u32::MAX;
 /// A leaf's `link` in the sampling layout is `LEAF_TAG + depth` (depth ≤ [`MAX_DEPTH`]);
 /// every child index is below it ([`WarpTable::from_raw`] checks).
 const LEAF_TAG: u32 = u32::MAX - 31;
+
+/// Marks, in a leaf's first shape word (of the sampling layout, and of a version 9 file's
+/// stored shapes), a leaf that spreads its share in its solid-angle chart ([`crate::rim`]);
+/// a shape's own bits stop below bit 24.
+pub(crate) const RIM_FLAG: u32 = 1 << 31;
+
+/// A rim leaf's proxy density per unit square area at `p`: its mean `density` (per unit
+/// square area, so its probability is `density` times its square's area), times its shape
+/// at `p`'s chart coordinates, over the chart's measure (a density per unit solid angle),
+/// over `z`, the cosine of `p`'s direction (per unit square area again, which the caller's
+/// factor z undoes). 0 off the chart.
+/// A disk sector (side 1 or more) is spread in its own chart, [`SectorChart`], and its
+/// `density` is per unit area of its part of the disk (π/4 of its square).
+#[inline]
+fn rim_density(density: f64, shape: &Shape, rect: &Rect, p: DVec2, z: f64) -> f64 {
+    if z.is_nan() || z <= 0.0 {
+        return 0.0;
+    }
+    let side = rect.side();
+    let (u, measure, area) = if side >= 1.0 {
+        let (u, measure) = SectorChart::of(rect).unit(p, z);
+        (u, measure, side * side * core::f64::consts::FRAC_PI_4)
+    } else {
+        let Some((u, measure)) = RimChart::of(rect).and_then(|c| c.unit(p)) else {
+            return 0.0;
+        };
+        (u, measure, side * side)
+    };
+    density * area * shape.density(u) / (measure * z)
+}
 
 /// Whether a sampling-layout `link` is a leaf's.
 #[inline(always)]
@@ -132,14 +163,22 @@ pub(crate) struct WarpLeaf {
     pub(crate) rect: Rect,
     pub(crate) density: f64,
     pub(crate) shape: Shape,
+    /// Whether the leaf spreads its share in its rim chart ([`crate::rim`]).
+    pub(crate) rim: bool,
 }
 
 impl WarpLeaf {
     /// The proxy's density per unit square area at `p` of this leaf: the one expression
     /// [`WarpTable::density`] ends in.
+    /// `z`: the cosine of `p`'s direction (a rim leaf's density is per unit solid angle,
+    /// divided by it here).
     #[inline]
-    pub(crate) fn density_at(&self, p: DVec2) -> f64 {
-        leaf_density(self.density, &self.shape, &self.rect, p)
+    pub(crate) fn density_at(&self, p: DVec2, z: f64) -> f64 {
+        if self.rim {
+            rim_density(self.density, &self.shape, &self.rect, p, z)
+        } else {
+            leaf_density(self.density, &self.shape, &self.rect, p)
+        }
     }
 
     /// Whether square point `p` is in this leaf's half-open square, the squares
@@ -279,12 +318,7 @@ impl WarpTable {
     #[inline(always)]
     fn shape(&self, i: usize) -> Shape {
         let [bits, fine] = self.nodes[i].rows;
-        Shape::from_checked_bits(bits, fine)
-    }
-
-    /// Sets leaf `i`'s proxy shape.
-    fn set_shape(&mut self, i: usize, shape: Shape) {
-        self.nodes[i].rows = [shape.to_bits(), shape.fine_bits()];
+        Shape::from_checked_bits(bits & !RIM_FLAG, fine)
     }
 
     /// Each node's square (parents before children).
@@ -308,38 +342,103 @@ impl WarpTable {
     }
 
     /// Fits every leaf's proxy shape ([`crate::bilinear::fit_leaf`]) from `f`, the tree's
-    /// integrand at a local direction, over `map` (the tree's). Leaves without volume and
-    /// disk sectors stay flat.
-    pub(crate) fn fit_shapes(&mut self, map: brdf_core::DiskMap, f: impl Fn(DVec3) -> f64) {
+    /// integrand at a local direction, over `map` (the tree's). Leaves without volume stay
+    /// flat. With `charts` (bakes from file version 9 on, orthographic tables), each disk
+    /// sector and each leaf on the disk's rim also tries its solid-angle chart
+    /// ([`crate::rim`]) and spreads its share there where that lowers the weight's second
+    /// moment at the fit's test points ([`crate::bilinear::choose_chart`]); otherwise
+    /// sectors stay flat over their part of the disk.
+    pub(crate) fn fit_shapes(
+        &mut self,
+        map: brdf_core::DiskMap,
+        f: impl Fn(DVec3) -> f64,
+        charts: bool,
+    ) {
+        use crate::bilinear::{choose_chart, fit_leaf_scored, fit_rim_leaf, fit_sector};
+        let charts = charts && self.disk;
         let squares = self.squares();
         for (i, square) in squares.iter().enumerate() {
-            if self.is_leaf(i) && !self.is_sector(i) && self.nodes[i].data != 0 {
-                let shape = crate::bilinear::fit_leaf(map, square, &f);
-                self.set_shape(i, shape);
+            if !self.is_leaf(i) || self.nodes[i].data == 0 {
+                continue;
             }
+            let (shape, chart) = if self.is_sector(i) {
+                if !charts {
+                    continue;
+                }
+                // A sector always takes its chart: the area proxy's score, from test points
+                // that stay off the rim, cannot see a weight that grows toward it
+                // (Cook–Torrance m = 1 at θi = 89°: R 10.6 kept by the score, 2.2 in the
+                // chart); what the chart's shape costs a proxy the area one fits exactly
+                // (Lambert) is R 1.000 → 1.010.
+                (fit_sector(&SectorChart::of(square), &f).0, true)
+            } else {
+                let (shape, old) = fit_leaf_scored(map, square, &f);
+                match RimChart::of(square).filter(|_| charts) {
+                    Some(rim) => {
+                        let (chart_shape, score) = fit_rim_leaf(&rim, &f);
+                        if choose_chart(old, score) {
+                            (chart_shape, true)
+                        } else {
+                            (shape, false)
+                        }
+                    }
+                    None => (shape, false),
+                }
+            };
+            self.set_proxy(i, shape, chart);
         }
     }
 
-    /// The shaped leaves and their shapes, in node order: the stored form of the shapes.
-    pub(crate) fn shaped(&self) -> impl Iterator<Item = (u32, Shape)> + '_ {
-        (0..self.nodes.len())
-            .filter(|&i| self.is_leaf(i) && self.nodes[i].rows != [0, 0])
-            .map(|i| (i as u32, self.shape(i)))
+    /// Sets leaf `i`'s proxy: its shape, and whether it spreads in its solid-angle chart.
+    fn set_proxy(&mut self, i: usize, shape: Shape, chart: bool) {
+        let flag = if chart { RIM_FLAG } else { 0 };
+        self.nodes[i].rows = [shape.to_bits() | flag, shape.fine_bits()];
     }
 
-    /// The table with the stored shapes of [`WarpTable::shaped`]: each a leaf's, not a disk
-    /// sector's, not flat, in increasing node order.
-    pub(crate) fn with_shapes(mut self, shaped: &[(u32, Shape)]) -> Result<Self, &'static str> {
+    /// The leaves whose proxy is not flat over their squares (or, for disk sectors, over
+    /// their parts of the disk) with their shapes and whether they spread in their
+    /// solid-angle chart ([`crate::rim`]), in node order: the stored form of the proxies.
+    pub(crate) fn shaped(&self) -> impl Iterator<Item = (u32, Shape, bool)> + '_ {
+        (0..self.nodes.len())
+            .filter(|&i| self.is_leaf(i) && self.nodes[i].rows != [0, 0])
+            .map(|i| {
+                (
+                    i as u32,
+                    self.shape(i),
+                    self.nodes[i].rows[0] & RIM_FLAG != 0,
+                )
+            })
+    }
+
+    /// The table with the stored proxies of [`WarpTable::shaped`]: each a leaf's, not flat
+    /// (or in its chart), in increasing node order; a chart only on a disk sector or a leaf
+    /// on the orthographic disk's rim.
+    pub(crate) fn with_shapes(
+        mut self,
+        shaped: &[(u32, Shape, bool)],
+    ) -> Result<Self, &'static str> {
+        let squares = if shaped.iter().any(|s| s.2) {
+            self.squares()
+        } else {
+            Vec::new()
+        };
         let mut last = None;
-        for &(i, shape) in shaped {
+        for &(i, shape, chart) in shaped {
             let k = i as usize;
             if k >= self.nodes.len() || last.is_some_and(|l| l >= i) {
                 return Err("a warp shape out of node order or range");
             }
-            if !self.is_leaf(k) || self.is_sector(k) || shape.is_flat() {
+            if !self.is_leaf(k) {
                 return Err("a warp shape on a node that cannot take one");
             }
-            self.set_shape(k, shape);
+            if chart {
+                if !(self.disk && (self.is_sector(k) || RimChart::of(&squares[k]).is_some())) {
+                    return Err("a warp chart on a leaf off the orthographic disk's rim");
+                }
+            } else if self.is_sector(k) || shape.is_flat() {
+                return Err("a warp shape on a node that cannot take one");
+            }
+            self.set_proxy(k, shape, chart);
             last = Some(i);
         }
         Ok(self)
@@ -481,18 +580,26 @@ impl WarpTable {
                 let t = DVec2::new((ux - lx) as f64 / wx as f64, (uy - ly) as f64 / wy as f64)
                     .clamp(DVec2::ZERO, DVec2::splat(1.0 - f64::EPSILON));
                 let shape = if shaped {
-                    Shape::from_checked_bits(n.rows[0], n.rows[1])
+                    Shape::from_checked_bits(n.rows[0] & !RIM_FLAG, n.rows[1])
                 } else {
                     Shape::FLAT
                 };
+                let rim = shaped && n.rows[0] & RIM_FLAG != 0;
                 let leaf = WarpLeaf {
                     index: i,
                     rect,
                     density,
                     shape,
+                    rim,
                 };
                 let p = if self.disk && depth <= 1 {
-                    sector_point(&rect, t)
+                    if rim {
+                        SectorChart::of(&rect).point(shape.warp(t))
+                    } else {
+                        sector_point(&rect, t)
+                    }
+                } else if rim {
+                    RimChart::of(&rect)?.point(shape.warp(t))
                 } else if shape.is_flat() {
                     rect.min + t * rect.side()
                 } else {
@@ -520,20 +627,22 @@ impl WarpTable {
     /// Trees are at most [`MAX_DEPTH`] deep, so every midpoint the descent compares with is
     /// a multiple of 2^(1 − MAX_DEPTH): p ≥ mid is a bit of ⌊p·2^(MAX_DEPTH − 1)⌋ (exact:
     /// scaling by a power of two), and the descent is loads alone.
+    /// `z`: the cosine of `p`'s direction, which a rim leaf's density (per unit solid
+    /// angle, [`crate::rim`]) is divided by.
     #[inline]
-    pub(crate) fn density(&self, p: DVec2) -> f64 {
-        self.look_up(p, true)
+    pub(crate) fn density(&self, p: DVec2, z: f64) -> f64 {
+        self.look_up(p, z, true)
     }
 
     /// [`WarpTable::density`] with every leaf flat: the density of
     /// [`WarpTable::warp_flat`].
     pub(crate) fn density_flat(&self, p: DVec2) -> f64 {
-        self.look_up(p, false)
+        self.look_up(p, 1.0, false)
     }
 
     /// The density at `p`, with the leaves' shapes where `shaped`.
     #[inline(always)]
-    fn look_up(&self, p: DVec2, shaped: bool) -> f64 {
+    fn look_up(&self, p: DVec2, z: f64, shaped: bool) -> f64 {
         if !(p.x >= -1.0 && p.x <= 1.0 && p.y >= -1.0 && p.y <= 1.0) {
             return 0.0;
         }
@@ -562,8 +671,12 @@ impl WarpTable {
                 let depth = n.link - LEAF_TAG;
                 let drop = MAX_DEPTH - depth;
                 let rect = Rect::dyadic(depth as u8, kx >> drop, ky >> drop);
-                let shape = Shape::from_checked_bits(n.rows[0], n.rows[1]);
-                return leaf_density(density, &shape, &rect, p);
+                let shape = Shape::from_checked_bits(n.rows[0] & !RIM_FLAG, n.rows[1]);
+                return if n.rows[0] & RIM_FLAG != 0 {
+                    rim_density(density, &shape, &rect, p, z)
+                } else {
+                    leaf_density(density, &shape, &rect, p)
+                };
             }
             bit -= 1;
             let col = (kx >> bit) & 1;
@@ -758,7 +871,7 @@ mod tests {
                         (leaf.density - want).abs() <= 1e-7 * want,
                         "{leaf:?} vs {want}"
                     );
-                    assert_eq!(t.density(p), leaf.density);
+                    assert_eq!(t.density(p, 1.0), leaf.density);
                     hits[leaf.index] += 1;
                     let r2 = p.length_squared();
                     r2_sum += r2;
@@ -822,7 +935,7 @@ mod tests {
                     -1.0 + (a as f64 + 0.5) * 2.0 / n as f64,
                     -1.0 + (b as f64 + 0.5) * 2.0 / n as f64,
                 );
-                sum += t.density(p) * (2.0 / n as f64) * (2.0 / n as f64);
+                sum += t.density(p, 1.0) * (2.0 / n as f64) * (2.0 / n as f64);
             }
         }
         assert!((sum - 1.0).abs() < 1e-6, "{sum}");
@@ -841,7 +954,7 @@ mod tests {
                 let u = DVec2::new((a as f64 + 0.5) / n as f64, (b as f64 + 0.5) / n as f64);
                 let (p, leaf) = t.warp(u).expect("volume everywhere but leaf 3");
                 assert!(leaf.contains(p), "{p} outside {leaf:?}");
-                assert_eq!(leaf.density, t.density(p));
+                assert_eq!(leaf.density, t.density(p, 1.0));
                 assert!(t.is_leaf(leaf.index));
                 counts[leaf.index] += 1;
             }
@@ -862,7 +975,7 @@ mod tests {
         let coarse = Shape::from_levels([4, 63, 20, 40]).unwrap();
         let fine = Shape::from_grid([5, 20, 5, 20, 63, 20, 5, 20, 9]).unwrap();
         let t = table()
-            .with_shapes(&[(1, fine), (5, coarse), (8, fine)])
+            .with_shapes(&[(1, fine, false), (5, coarse, false), (8, fine, false)])
             .unwrap();
         assert_eq!(t.shaped().count(), 3);
         let cells = 16;
@@ -873,7 +986,7 @@ mod tests {
             for b in 0..cells * sub {
                 let h = 2.0 / (cells * sub) as f64;
                 let p = DVec2::new(-1.0 + (a as f64 + 0.5) * h, -1.0 + (b as f64 + 0.5) * h);
-                let d = t.density(p) * h * h;
+                let d = t.density(p, 1.0) * h * h;
                 sum += d;
                 want[(b / sub) * cells + a / sub] += d;
             }
@@ -886,7 +999,10 @@ mod tests {
                 let u = DVec2::new((a as f64 + 0.5) / n as f64, (b as f64 + 0.5) / n as f64);
                 let (p, leaf) = t.warp(u).unwrap();
                 assert!(leaf.contains(p), "{p} outside {leaf:?}");
-                assert_eq!(leaf.density_at(p).to_bits(), t.density(p).to_bits());
+                assert_eq!(
+                    leaf.density_at(p, 1.0).to_bits(),
+                    t.density(p, 1.0).to_bits()
+                );
                 let cell = |x: f64| (((x + 1.0) * 0.5 * cells as f64) as usize).min(cells - 1);
                 got[cell(p.y) * cells + cell(p.x)] += 1;
             }
@@ -905,17 +1021,17 @@ mod tests {
             .count();
         assert!(moved > 50, "{moved}");
         for bad in [
-            &[(0, coarse)][..],
-            &[(4, coarse)],
-            &[(5, coarse), (1, fine)],
-            &[(1, Shape::FLAT)],
-            &[(9, coarse)],
+            &[(0, coarse, false)][..],
+            &[(4, coarse, false)],
+            &[(5, coarse, false), (1, fine, false)],
+            &[(1, Shape::FLAT, false)],
+            &[(9, coarse, false)],
         ] {
             assert!(table().with_shapes(bad).is_err(), "{bad:?}");
         }
         let sector =
             WarpTable::from_raw(alloc::vec![(WARP_LEAF, 1.0)], DiskMap::Orthographic).unwrap();
-        assert!(sector.with_shapes(&[(0, coarse)]).is_err());
+        assert!(sector.with_shapes(&[(0, coarse, false)]).is_err());
     }
 
     /// On a leaf's edges and corners, `contains` holds exactly where the look-up finds that
@@ -940,7 +1056,7 @@ mod tests {
                 for y in ys {
                     let p = DVec2::new(x, y);
                     if leaf.contains(p) {
-                        assert_eq!(t.density(p), leaf.density, "{p} in {leaf:?}");
+                        assert_eq!(t.density(p, 1.0), leaf.density, "{p} in {leaf:?}");
                     }
                 }
             }
@@ -1025,7 +1141,7 @@ mod tests {
                 for e in [0.0, 1e-12, -1e-12] {
                     let p = DVec2::new(a as f64 / 256.0 - 1.0 + e, b as f64 / 256.0 - 1.0 - e);
                     if p.x.abs() <= 1.0 && p.y.abs() <= 1.0 {
-                        assert_eq!(t.density(p), plain(p), "{p}");
+                        assert_eq!(t.density(p, 1.0), plain(p), "{p}");
                         checked += 1;
                     }
                 }
@@ -1035,7 +1151,7 @@ mod tests {
         // A one-node table jumps no level.
         let one = WarpTable::from_raw(alloc::vec![(WARP_LEAF, 1.0)], SQUARES).unwrap();
         assert_eq!((one.jump_levels, one.jump.len()), (0, 1));
-        assert_eq!(one.density(DVec2::new(0.3, -0.9)), 0.25);
+        assert_eq!(one.density(DVec2::new(0.3, -0.9), 1.0), 0.25);
     }
 
     /// A tree complete to depth 4 and, below one of its depth-4 nodes, 9 levels deep, with
