@@ -818,6 +818,16 @@ mod tests {
             .iter()
             .map(|s| s.warp.shaped().filter(|p| p.2).count());
         assert!(charted.sum::<usize>() >= 4);
+        // Lambert's sectors are exact spread over their area: none takes its chart.
+        let lambert = registry::create("lambert", [""; 0]).unwrap();
+        let flat = BakedSampler::new(lambert.into(), config).unwrap();
+        assert!(
+            flat.tables()
+                .0
+                .slices
+                .iter()
+                .all(|s| s.warp.shaped().all(|p| !p.2))
+        );
         // A version 8 reader refuses a chart's mark.
         assert!(BakedSampler::from_bytes(&frame(8, payload)).is_err());
         let mut old = BakedSampler::from_bytes(&frame(8, &chartless(payload))).unwrap();

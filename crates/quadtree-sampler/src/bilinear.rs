@@ -130,6 +130,25 @@ pub(crate) fn fit_sector(chart: &SectorChart, f: impl Fn(DVec3) -> f64) -> (Shap
     fit_scored(control, &tests)
 }
 
+/// The score of a disk sector spread uniformly over its part of the disk (flat in (r², φ),
+/// as up to version 8), at [`fit_sector`]'s test points and in its normalisation, so that
+/// the two compare: the sector's density per unit solid angle is then ∝ z where the
+/// chart's is ∝ S, and ∫T²/q dω becomes Σ ½·(f·span)²·z against Σ (f·z·span)²/S. Scored at
+/// the chart's points (uniform in z), a weight that grows toward the rim shows in the
+/// area proxy's score; scored at its own points (uniform in r², none beyond z = 0.35) it
+/// would not.
+pub(crate) fn sector_area_score(chart: &SectorChart, f: impl Fn(DVec3) -> f64) -> f64 {
+    let span = chart.span();
+    (0..16)
+        .map(|k| {
+            let t = DVec2::new(((k % 4) as f64 + 0.5) / 4.0, ((k / 4) as f64 + 0.5) / 4.0);
+            let p = chart.point(t);
+            let g = f(DVec3::new(p.x, p.y, t.x)) * span;
+            0.5 * g * g * t.x
+        })
+        .sum()
+}
+
 /// Of two proxies for one leaf, with their scores, whether the second (the solid-angle
 /// chart, [`crate::rim`]) is taken: where it lowers the score by [`MIN_GAIN`] or more.
 pub(crate) fn choose_chart(old: f64, chart: f64) -> bool {

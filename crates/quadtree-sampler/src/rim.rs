@@ -20,6 +20,13 @@
 //! then follows what is left of f over the chart's unit square.) Near (±1, 0), where ρ
 //! vanishes and a small leaf's t-range would span ±π/2, the chart is transposed (x and y
 //! exchanged), as the rejection sampler's angle charts are.
+//!
+//! A disk sector (the root or one of its children, spread uniformly in area, so ∝ cos θ
+//! per solid angle) has the same fault and its own chart, (z, φ) with dω = dz dφ
+//! ([`SectorChart`]). Either chart is taken only where it scores better at the fit's test
+//! points (`bilinear::choose_chart`): where f·cos θ falls like cos θ toward the rim
+//! (Lambert), the area spread is exact and stays. The choice is stored in the leaf's shape
+//! word (file version 9).
 
 use crate::chart::Rect;
 use brdf_core::math as m;

@@ -354,7 +354,9 @@ impl WarpTable {
         f: impl Fn(DVec3) -> f64,
         charts: bool,
     ) {
-        use crate::bilinear::{choose_chart, fit_leaf_scored, fit_rim_leaf, fit_sector};
+        use crate::bilinear::{
+            choose_chart, fit_leaf_scored, fit_rim_leaf, fit_sector, sector_area_score,
+        };
         let charts = charts && self.disk;
         let squares = self.squares();
         for (i, square) in squares.iter().enumerate() {
@@ -365,12 +367,12 @@ impl WarpTable {
                 if !charts {
                     continue;
                 }
-                // A sector always takes its chart: the area proxy's score, from test points
-                // that stay off the rim, cannot see a weight that grows toward it
-                // (Cook–Torrance m = 1 at θi = 89°: R 10.6 kept by the score, 2.2 in the
-                // chart); what the chart's shape costs a proxy the area one fits exactly
-                // (Lambert) is R 1.000 → 1.010.
-                (fit_sector(&SectorChart::of(square), &f).0, true)
+                let sector = SectorChart::of(square);
+                let (shape, score) = fit_sector(&sector, &f);
+                if !choose_chart(sector_area_score(&sector, &f), score) {
+                    continue;
+                }
+                (shape, true)
             } else {
                 let (shape, old) = fit_leaf_scored(map, square, &f);
                 match RimChart::of(square).filter(|_| charts) {
