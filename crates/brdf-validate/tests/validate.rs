@@ -549,3 +549,31 @@ fn a_needle_along_a_turned_axis_passes_when_its_plane_is_named() {
     assert!(!without.passed(), "{without}");
     assert!(with.passed(), "{with}");
 }
+
+/// The cell masses' tolerance is relative to the f·cos's own scale: the same function times
+/// 10¹⁰ or 10¹⁰⁰ costs about the same number of evaluations and gives the same masses times
+/// that.
+/// (The coarse total that sets the scale was integrated to 10⁻³ absolute: at 10¹⁰⁰ every
+/// piece refined to its limit, 24 s for a constant, and an f·cos of 10³⁰⁰ made `check` take
+/// 352 s.) A constant, which jumps to 0 at the rim, is the hardest case.
+#[test]
+fn the_masses_tolerance_follows_the_scale_of_f() {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    let run = |scale: f64| {
+        let calls = AtomicU64::new(0);
+        let f = |_: Vec3| {
+            calls.fetch_add(1, Ordering::Relaxed);
+            scale
+        };
+        let v = Validation::of_fcos(f, &[], CellGrid::Square { res: 25 }, 1e-7).unwrap();
+        (calls.into_inner(), v.mass().to_vec())
+    };
+    let (calls, mass) = run(1.0);
+    for scale in [1e10, 1e100] {
+        let (c, m) = run(scale);
+        assert!(c <= 2 * calls, "scale {scale:e}: {c} evaluations against {calls}");
+        for (a, b) in mass.iter().zip(&m) {
+            assert!((b / scale - a).abs() <= 1e-6 * a.abs().max(1e-12), "{scale:e}: {a} {b}");
+        }
+    }
+}
