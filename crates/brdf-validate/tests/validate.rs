@@ -571,9 +571,15 @@ fn the_masses_tolerance_follows_the_scale_of_f() {
     let (calls, mass) = run(1.0);
     for scale in [1e10, 1e100] {
         let (c, m) = run(scale);
-        assert!(c <= 2 * calls, "scale {scale:e}: {c} evaluations against {calls}");
+        assert!(
+            c <= 2 * calls,
+            "scale {scale:e}: {c} evaluations against {calls}"
+        );
         for (a, b) in mass.iter().zip(&m) {
-            assert!((b / scale - a).abs() <= 1e-6 * a.abs().max(1e-12), "{scale:e}: {a} {b}");
+            assert!(
+                (b / scale - a).abs() <= 1e-6 * a.abs().max(1e-12),
+                "{scale:e}: {a} {b}"
+            );
         }
     }
 }

@@ -19,6 +19,11 @@
 //! deterministic, monotone map of the leaf's uniforms (stratified points stay stratified),
 //! undone by [`Shape::invert`]; its density S/mean(S) is exact for the stored levels,
 //! whatever they are.
+//!
+//! On the orthographic disk a baked warp's sectors and rim leaves may instead spread their
+//! shares in a solid-angle chart (`rim`), with the shape fitted over that chart's unit
+//! square ([`fit_sector`], [`fit_rim_leaf`]); each leaf keeps whichever of the two scores
+//! better at the test points ([`choose_chart`]).
 
 use crate::chart::Rect;
 use crate::proposal::Shape;
@@ -58,7 +63,7 @@ pub(crate) fn fit_leaf(map: DiskMap, rect: &Rect, f: impl Fn(DVec3) -> f64) -> S
 
 /// [`fit_leaf`], with the choice's score: Σ g²/S over the test points, g = f times the
 /// square's area, which is (up to a factor every candidate proxy of the leaf shares) the
-/// weight's second moment ∫T²/q dω under this proxy — what [`choose_proxy`] compares.
+/// weight's second moment ∫T²/q dω under this proxy — what [`choose_chart`] compares.
 pub(crate) fn fit_leaf_scored(map: DiskMap, rect: &Rect, f: impl Fn(DVec3) -> f64) -> (Shape, f64) {
     let side = rect.max - rect.min;
     let at = |t: DVec2| rect.min + side * t;

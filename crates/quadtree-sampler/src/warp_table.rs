@@ -71,6 +71,7 @@ pub(crate) const RIM_FLAG: u32 = 1 << 31;
 /// at `p`'s chart coordinates, over the chart's measure (a density per unit solid angle),
 /// over `z`, the cosine of `p`'s direction (per unit square area again, which the caller's
 /// factor z undoes). 0 off the chart.
+///
 /// A disk sector (side 1 or more) is spread in its own chart, [`SectorChart`], and its
 /// `density` is per unit area of its part of the disk (π/4 of its square).
 #[inline]
