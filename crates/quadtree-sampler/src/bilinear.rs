@@ -40,6 +40,18 @@ pub(crate) const FLOOR_LEVEL: u8 = 4;
 /// leaf to take a shape: below it the flat proxy's cheaper warp is kept.
 pub(crate) const MIN_GAIN: f64 = 0.02;
 
+/// Control point `k` (index 3j + i) of a shape's grid in its unit square: t = (i/2, j/2).
+#[inline]
+fn control_point(k: usize) -> DVec2 {
+    DVec2::new((k % 3) as f64 * 0.5, (k / 3) as f64 * 0.5)
+}
+
+/// Test point `k` of a fit: the midpoints of a 4 × 4 grid over the unit square.
+#[inline]
+fn test_point(k: usize) -> DVec2 {
+    DVec2::new(((k % 4) as f64 + 0.5) / 4.0, ((k / 4) as f64 + 0.5) / 4.0)
+}
+
 /// A leaf's proxy density per unit square area at square point `p`: its mean `density`
 /// times its shape at p's place in its (dyadic) square `rect` — the one expression the
 /// per-wi warp, the baked warp's look-up and the leaf a sample was drawn in share.
@@ -68,7 +80,7 @@ pub(crate) fn fit_leaf_scored(map: DiskMap, rect: &Rect, f: impl Fn(DVec3) -> f6
     let side = rect.max - rect.min;
     let at = |t: DVec2| rect.min + side * t;
     let control: [f64; 9] = core::array::from_fn(|k| {
-        let p = at(DVec2::new((k % 3) as f64 * 0.5, (k / 3) as f64 * 0.5));
+        let p = at(control_point(k));
         match map.square_to_direction_f64(p) {
             Some(w) => f(w),
             None => {
@@ -78,7 +90,7 @@ pub(crate) fn fit_leaf_scored(map: DiskMap, rect: &Rect, f: impl Fn(DVec3) -> f6
         }
     });
     let tests: [Option<(DVec2, f64)>; 16] = core::array::from_fn(|k| {
-        let t = DVec2::new(((k % 4) as f64 + 0.5) / 4.0, ((k / 4) as f64 + 0.5) / 4.0);
+        let t = test_point(k);
         map.square_to_direction_f64(at(t)).map(|w| (t, f(w)))
     });
     let area = side.x * side.y;
@@ -105,53 +117,47 @@ pub(crate) fn fit_rim_leaf(chart: &RimChart, f: impl Fn(DVec3) -> f64) -> (Shape
         let w = lift_to_grazing_floor(w);
         Some(f(w) * w.z * measure)
     };
-    let control: [f64; 9] = core::array::from_fn(|k| {
-        value(DVec2::new((k % 3) as f64 * 0.5, (k / 3) as f64 * 0.5)).unwrap_or(0.0)
-    });
+    let control: [f64; 9] = core::array::from_fn(|k| value(control_point(k)).unwrap_or(0.0));
     let tests: [Option<(DVec2, f64)>; 16] = core::array::from_fn(|k| {
-        let t = DVec2::new(((k % 4) as f64 + 0.5) / 4.0, ((k / 4) as f64 + 0.5) / 4.0);
+        let t = test_point(k);
         value(t).map(|v| (t, v))
     });
     fit_scored(control, &tests)
 }
 
-/// [`fit_leaf`] for a disk sector spread in solid angle ([`SectorChart`]): the shape over
-/// its unit (z, φ) square that follows f·cos θ (the chart's density being uniform in solid
-/// angle); a point on the rim takes f at the grazing floor there.
-pub(crate) fn fit_sector(chart: &SectorChart, f: impl Fn(DVec3) -> f64) -> (Shape, f64) {
+/// A disk sector's proxy: its shape in its solid-angle chart ([`SectorChart`], uniform in
+/// solid angle), fitted to f·cos θ, where that scores better ([`choose_chart`]) than the
+/// sector's spread over its area (flat in (r², φ), as up to version 8); `None` where the
+/// area spread stays. A point on the rim takes f at the grazing floor there.
+///
+/// Both scores come from the same f at the chart's test points (uniform in z), in one
+/// normalisation: the area spread's density per unit solid angle is ∝ z where the chart's is
+/// ∝ S, and ∫T²/q dω becomes Σ ½·(f·span)²·z against Σ (f·z·span)²/S. There a weight that
+/// grows toward the rim shows in the area spread's score; at its own points (uniform in r²,
+/// none beyond z = 0.35) it would not (Cook–Torrance m = 1 at θi = 89° kept its area spread
+/// and R 10.6, against 2.2 in the chart). Where f·cos θ falls like cos θ toward the rim
+/// (Lambert) the area spread is exact and stays.
+pub(crate) fn fit_sector(chart: &SectorChart, f: impl Fn(DVec3) -> f64) -> Option<Shape> {
     let span = chart.span();
-    let value = |u: DVec2| {
+    let at = |u: DVec2| {
         let p = chart.point(u);
-        let z = u.x.max(0.0);
-        let w = lift_to_grazing_floor(DVec3::new(p.x, p.y, z));
-        f(w) * w.z * span
+        lift_to_grazing_floor(DVec3::new(p.x, p.y, u.x.max(0.0)))
     };
-    let control: [f64; 9] =
-        core::array::from_fn(|k| value(DVec2::new((k % 3) as f64 * 0.5, (k / 3) as f64 * 0.5)));
-    let tests: [Option<(DVec2, f64)>; 16] = core::array::from_fn(|k| {
-        let t = DVec2::new(((k % 4) as f64 + 0.5) / 4.0, ((k / 4) as f64 + 0.5) / 4.0);
-        Some((t, value(t)))
+    let control: [f64; 9] = core::array::from_fn(|k| {
+        let w = at(control_point(k));
+        f(w) * w.z * span
     });
-    fit_scored(control, &tests)
-}
-
-/// The score of a disk sector spread uniformly over its part of the disk (flat in (r², φ),
-/// as up to version 8), at [`fit_sector`]'s test points and in its normalisation, so that
-/// the two compare: the sector's density per unit solid angle is then ∝ z where the
-/// chart's is ∝ S, and ∫T²/q dω becomes Σ ½·(f·span)²·z against Σ (f·z·span)²/S. Scored at
-/// the chart's points (uniform in z), a weight that grows toward the rim shows in the
-/// area proxy's score; scored at its own points (uniform in r², none beyond z = 0.35) it
-/// would not.
-pub(crate) fn sector_area_score(chart: &SectorChart, f: impl Fn(DVec3) -> f64) -> f64 {
-    let span = chart.span();
-    (0..16)
-        .map(|k| {
-            let t = DVec2::new(((k % 4) as f64 + 0.5) / 4.0, ((k / 4) as f64 + 0.5) / 4.0);
-            let p = chart.point(t);
-            let g = f(DVec3::new(p.x, p.y, t.x)) * span;
-            0.5 * g * g * t.x
-        })
-        .sum()
+    let mut area = 0.0;
+    let tests: [Option<(DVec2, f64)>; 16] = core::array::from_fn(|k| {
+        let t = test_point(k);
+        let w = at(t);
+        let fw = f(w);
+        let g = fw * span;
+        area += 0.5 * g * g * t.x;
+        Some((t, fw * w.z * span))
+    });
+    let (shape, score) = fit_scored(control, &tests);
+    choose_chart(area, score).then_some(shape)
 }
 
 /// Of two proxies for one leaf, with their scores, whether the second (the solid-angle
@@ -206,13 +212,13 @@ mod tests {
 
     fn tests_of(f: &dyn Fn(DVec2) -> f64) -> [Option<(DVec2, f64)>; 16] {
         core::array::from_fn(|k| {
-            let t = DVec2::new(((k % 4) as f64 + 0.5) / 4.0, ((k / 4) as f64 + 0.5) / 4.0);
+            let t = test_point(k);
             Some((t, f(t)))
         })
     }
 
     fn control_of(f: &dyn Fn(DVec2) -> f64) -> [f64; 9] {
-        core::array::from_fn(|k| f(DVec2::new((k % 3) as f64 * 0.5, (k / 3) as f64 * 0.5)))
+        core::array::from_fn(|k| f(control_point(k)))
     }
 
     #[test]

@@ -164,7 +164,8 @@ pub(crate) struct WarpLeaf {
     pub(crate) rect: Rect,
     pub(crate) density: f64,
     pub(crate) shape: Shape,
-    /// Whether the leaf spreads its share in its rim chart ([`crate::rim`]).
+    /// Whether the leaf spreads its share in its solid-angle chart ([`crate::rim`]: a rim
+    /// leaf's or a disk sector's).
     pub(crate) rim: bool,
 }
 
@@ -355,9 +356,7 @@ impl WarpTable {
         f: impl Fn(DVec3) -> f64,
         charts: bool,
     ) {
-        use crate::bilinear::{
-            choose_chart, fit_leaf_scored, fit_rim_leaf, fit_sector, sector_area_score,
-        };
+        use crate::bilinear::{choose_chart, fit_leaf_scored, fit_rim_leaf, fit_sector};
         let charts = charts && self.disk;
         let squares = self.squares();
         for (i, square) in squares.iter().enumerate() {
@@ -368,11 +367,9 @@ impl WarpTable {
                 if !charts {
                     continue;
                 }
-                let sector = SectorChart::of(square);
-                let (shape, score) = fit_sector(&sector, &f);
-                if !choose_chart(sector_area_score(&sector, &f), score) {
+                let Some(shape) = fit_sector(&SectorChart::of(square), &f) else {
                     continue;
-                }
+                };
                 (shape, true)
             } else {
                 let (shape, old) = fit_leaf_scored(map, square, &f);

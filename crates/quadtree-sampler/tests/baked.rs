@@ -963,8 +963,8 @@ fn the_half_vector_transport_follows_an_anisotropic_lobe() {
     }
 }
 
-/// A warp leaf on the orthographic disk's rim spreads its share in solid angle where that
-/// fits f·cos θ better (file version 9, `rim`): Cook–Torrance m = 1 seen from grazing
+/// A warp leaf on the orthographic disk's rim, or a disk sector, spreads its share in solid
+/// angle where that fits f·cos θ better (file version 9, `rim`): Cook–Torrance m = 1 seen from grazing
 /// incidence grows like 1/cos θo toward the horizon on the mirror side, which a proxy flat
 /// over its square (or a disk sector's area) follows only in density per unit area, so its
 /// weight's relative second moment R reached 10.6 at θi = 89° and 20 at 89.5° on the default
