@@ -966,6 +966,42 @@ mod tests {
         }
     }
 
+    /// A solid-angle chart's mark is taken only where a chart can be: on an orthographic
+    /// disk sector or a leaf whose square crosses the rim; on a leaf inside the disk, or on
+    /// any leaf of a concentric table (whose squares cross r = 1 too), it is refused.
+    #[test]
+    fn a_chart_mark_is_refused_where_no_chart_can_be() {
+        // The root, its four children, and the first child split again: leaf 5 is
+        // [−1, −0.5]², across the rim; leaf 8 is [−0.5, 0]², inside the disk.
+        let shares = alloc::vec![
+            (1, 1.0),
+            (5, 0.25),
+            (WARP_LEAF, 0.25),
+            (WARP_LEAF, 0.25),
+            (WARP_LEAF, 0.25),
+            (WARP_LEAF, 0.0625),
+            (WARP_LEAF, 0.0625),
+            (WARP_LEAF, 0.0625),
+            (WARP_LEAF, 0.0625),
+        ];
+        let table = |map| WarpTable::from_raw(shares.clone(), map).unwrap();
+        let mark = |map, leaf: u32| table(map).with_shapes(&[(leaf, Shape::FLAT, true)]);
+        let orthographic = DiskMap::Orthographic;
+        assert!(mark(orthographic, 2).is_ok(), "a sector");
+        assert!(mark(orthographic, 5).is_ok(), "across the rim");
+        assert!(mark(orthographic, 8).is_err(), "inside the disk");
+        for leaf in [2, 5, 8] {
+            assert!(
+                mark(DiskMap::Concentric, leaf).is_err(),
+                "concentric {leaf}"
+            );
+        }
+        // A marked flat leaf spreads in its chart: its point is no longer the square's.
+        let (plain, charted) = (table(orthographic), mark(orthographic, 5).unwrap());
+        let u = DVec2::new(0.1, 0.15);
+        assert_ne!(plain.warp(u).unwrap().0, charted.warp(u).unwrap().0);
+    }
+
     /// Shaped leaves: the density still integrates to 1, the look-up and the drawing leaf
     /// agree on it to the bit, and the warp's points follow it cell by cell (stratified u:
     /// a 16 × 16 grid of cells over the square, each against its own integral). A stored
