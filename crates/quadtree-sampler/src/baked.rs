@@ -609,7 +609,7 @@ impl BakedSampler {
     pub fn mixture_at(&self, role: Role, given: Vec3) -> Result<Vec<MixtureTree>, BakedError> {
         let given = brdf_core::geometry::unit_direction_above(given)?;
         let (tables, _) = self.tables_for(role);
-        let mut comps = [crate::baked_mixture::Component::NONE; 4];
+        let mut comps = crate::baked_mixture::Components::new();
         let n = self.components(self.mode, tables, given, &mut comps);
         Ok(comps[..n]
             .iter()

@@ -93,6 +93,11 @@ static BLEND: Nearest = Nearest {
     phi: alloc::vec::Vec::new(),
 };
 
+/// A query's mixture components, on the stack: at most two neighbours along θi and two along
+/// φi, or the last row's up to two trees twice beyond it. (Not an array of placeholders: four
+/// of those, 168 bytes each, were copied in on every sample and pdf.)
+pub(crate) type Components = arrayvec::ArrayVec<Component, 4>;
+
 /// One neighbour of a query: its tree, weight, and the map from its tree's frame to the
 /// caller's local frame: unfold ∘ rotation onto the query's mirror direction (`to_local`),
 /// or, where `half` is set, the half-vector transport (see [`HalfMap`]; `to_local` then
@@ -163,14 +168,6 @@ impl HalfMap {
 }
 
 impl Component {
-    /// A placeholder for [`BakedSampler::components`] to overwrite.
-    pub(crate) const NONE: Self = Self {
-        slice: 0,
-        weight: 0.0,
-        to_local: DMat3::IDENTITY,
-        half: None,
-    };
-
     /// A direction of this component's tree (unit) in the local frame, as a sample returns
     /// it; 0 (below every horizon) where the half-vector transport loses it.
     #[inline(always)]
@@ -210,17 +207,18 @@ impl BakedSampler {
         }
     }
 
-    /// The components of the mixture at a given (checked, unit) direction: written to the
-    /// front of `out` (filled by the caller, so they are not copied on their way back),
-    /// their number returned.
+    /// The components of the mixture at a given (checked, unit) direction: pushed onto `out`
+    /// (empty, the caller's, so that they are not copied on their way back), their number
+    /// returned.
     #[inline(always)]
     pub(crate) fn components(
         &self,
         mode: BakedMode,
         tables: &Tables,
         given: Vec3,
-        out: &mut [Component; 4],
+        out: &mut Components,
     ) -> usize {
+        debug_assert!(out.is_empty());
         let g = given.as_dvec3();
         let mut n = 0;
         let mut sum = 0.0;
@@ -281,12 +279,12 @@ impl BakedSampler {
             } else {
                 rotation_onto(tables.slices[slice].mirror, mc, unfold)
             };
-            out[n] = Component {
+            out.push(Component {
                 slice,
                 weight: w,
                 to_local,
                 half,
-            };
+            });
             n += 1;
             sum += w;
         }
@@ -321,12 +319,12 @@ impl BakedSampler {
                     DMat3::from_cols(r.x_axis * unfold, r.y_axis * unfold, r.z_axis * unfold)
                 };
                 out[k].weight = c.weight * (1.0 - beyond);
-                out[n + k] = Component {
+                out.push(Component {
                     slice: c.slice,
                     weight: c.weight * beyond,
                     to_local,
                     half: None,
-                };
+                });
             }
             n *= 2;
         }
@@ -392,7 +390,7 @@ impl BakedSampler {
         sampled: Vec3,
     ) -> f32 {
         let (tables, adjoint) = self.tables_for(role);
-        let mut comps = [Component::NONE; 4];
+        let mut comps = Components::new();
         let n = self.components(mode, tables, given, &mut comps);
         self.pdf_of(mode, tables, adjoint, &comps[..n], sampled, None)
     }
@@ -405,7 +403,7 @@ impl BakedSampler {
     /// own hints at `given` do not name.
     pub(crate) fn density_hints_unit(&self, role: Role, given: Vec3) -> DensityHints {
         let (tables, _) = self.tables_for(role);
-        let mut comps = [Component::NONE; 4];
+        let mut comps = Components::new();
         let n = self.components(self.mode, tables, given, &mut comps);
         // In rejection mode its densities follow the model's f: a staircase where the model
         // is one. (The warp's are constant on the trees' leaves: cut finer, no harm done.)
@@ -489,7 +487,7 @@ impl BakedSampler {
     ) -> Option<Sample> {
         let mode = self.mode;
         let (tables, adjoint) = self.tables_for(role);
-        let mut comps = [Component::NONE; 4];
+        let mut comps = Components::new();
         let n = self.components(mode, tables, given, &mut comps);
         let delta = if n == 0 { 1.0 } else { self.config.defensive };
         let uc = f64::from(uc.clamp(0.0, 1.0));

@@ -4,7 +4,7 @@
 //! control whose reported pdf drops a neighbour ([`BrokenPdf`]).
 
 use crate::baked::{BakedMode, BakedSampler, Role};
-use crate::baked_mixture::Component;
+use crate::baked_mixture::Components;
 use crate::error::BakedError;
 use crate::sampler::Sample;
 use alloc::sync::Arc;
@@ -55,7 +55,7 @@ impl BrokenPdf {
     #[must_use]
     pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
         let b = &self.0;
-        let mut comps = [Component::NONE; 4];
+        let mut comps = Components::new();
         let n = b.components(b.mode, &b.forward, wi, &mut comps);
         if n < 2 {
             return b.pdf_unit(Role::Importance, wi, wo);
