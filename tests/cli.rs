@@ -607,13 +607,16 @@ fn bench_reports_ratios_from_unbiased_estimates() {
     let per_node = set["bytes_per_node"].as_f64().unwrap();
     assert!((16.0..=32.0).contains(&per_node), "{per_node}");
     assert!(v["beckmann_analytic_ns_per_sample"].as_f64().unwrap() > 0.0);
-    // The baked rows are divided by the Beckmann sample timed in their own loop.
-    let yard = v["beckmann_analytic_random_wi_ns_per_sample"]
+    // The baked rows are divided by the Beckmann sample timed in their own loop, in runs
+    // taken in turn with the row's own.
+    let first = v["beckmann_analytic_random_wi_ns_per_sample"]
         .as_f64()
         .unwrap();
+    assert!(first > 0.0 && first.is_finite(), "{first}");
+    let b = &set["baked"];
+    let yard = b["random_wi_beckmann_ns_per_sample"].as_f64().unwrap();
     assert!(yard > 0.0 && yard.is_finite(), "{yard}");
     for mode in ["rejection", "warp"] {
-        let b = &set["baked"];
         let ns = b[format!("random_wi_ns_per_sample_{mode}")]
             .as_f64()
             .unwrap();
