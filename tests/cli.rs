@@ -120,6 +120,11 @@ const SETS: &[(&str, &[&str])] = &[
         &["height=0.4", "gap=1.5", "kd=0.3", "ks=0.6", "n=1000"],
     ),
     ("poulin-fournier", &["kd=1", "ks=0", "n=0"]),
+    // A broad local lobe (n < 4, 32 nodes in the Gaussian variable and its own cut).
+    (
+        "poulin-fournier",
+        &["height=0.7", "gap=0.5", "kd=0.1", "ks=0.9", "n=0.5"],
+    ),
     ("strauss", &[]),
     (
         "strauss",
