@@ -604,3 +604,43 @@ fn the_masses_tolerance_follows_the_scale_of_f() {
         }
     }
 }
+
+/// A lobe narrower than the coarse grid's nodes, with no peak to cut at, still sets the
+/// masses' tolerance: a needle of 10¹² within 0.08° of the normal costs about what a broad
+/// cap does and is found whole. (The coarse total that scales the tolerance missed it: 0,
+/// so every cell that saw the needle was refined to every piece's limit, about 10⁹
+/// evaluations on the polar grid, and `check` had not finished after 380 s.)
+#[test]
+fn a_needle_the_coarse_total_misses_keeps_a_usable_tolerance() {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    let run = |r2: f32, grid: CellGrid| {
+        let calls = AtomicU64::new(0);
+        let cap = |w: Vec3| {
+            calls.fetch_add(1, Ordering::Relaxed);
+            if w.x * w.x + w.y * w.y < r2 {
+                1e12
+            } else {
+                0.0
+            }
+        };
+        let v = Validation::of_fcos(cap, &[], grid, 1e-7).unwrap();
+        // ∫ fcos dω = ∫ fcos/z dA over the cap: 2π(1 − √(1 − r²)) × 10¹².
+        let exact = 2.0 * std::f64::consts::PI * (1.0 - (1.0 - f64::from(r2)).sqrt()) * 1e12;
+        (calls.into_inner(), v.mass().iter().sum::<f64>() / exact)
+    };
+    for grid in [
+        CellGrid::Square { res: 25 },
+        CellGrid::Polar {
+            rings: 25,
+            sectors: 51,
+        },
+    ] {
+        let (broad, _) = run(1e-2, grid);
+        let (calls, ratio) = run(2e-6, grid);
+        assert!(
+            calls <= 5 * broad,
+            "{grid:?}: {calls} evaluations against {broad} for a broad cap"
+        );
+        assert!((ratio - 1.0).abs() < 2e-3, "{grid:?}: {ratio}");
+    }
+}
