@@ -256,13 +256,31 @@ impl Validation {
         } else {
             self.rel_tol
         };
-        self.grid.integrate_all(rel, &all, &|w: Vec3| {
+        let per_area = |w: Vec3| {
             if w.z > 0.0 {
                 pdf(w) / f64::from(w.z)
             } else {
                 0.0
             }
-        })
+        };
+        // The tolerance is relative to a total of 1, what a density sums to; a sampler that
+        // reports a density many times too large (3·10³⁸ everywhere) had its cells refined
+        // to every piece's limit: `check` took 424 s. Where a first unrefined total over a
+        // coarse grid exceeds 2, the tolerance follows it (a density that sums to 1 keeps
+        // its tolerance, and its probabilities, bit for bit).
+        let rough: f64 = CellGrid::Polar {
+            rings: 8,
+            sectors: 16,
+        }
+        .integrate_all(f64::INFINITY, &all, &per_area)
+        .iter()
+        .sum();
+        let rel = if rough.is_finite() && rough > 2.0 {
+            rel * rough
+        } else {
+            rel
+        };
+        self.grid.integrate_all(rel, &all, &per_area)
     }
 
     /// Draws `samples` directions from `sampler` (which must be for this BRDF and `wi`),

@@ -644,3 +644,33 @@ fn a_needle_the_coarse_total_misses_keeps_a_usable_tolerance() {
         assert!((ratio - 1.0).abs() < 2e-3, "{grid:?}: {ratio}");
     }
 }
+
+/// A sampler whose reported density is many times too large (3·10³⁸ everywhere: its cells'
+/// probabilities sum to 10³⁸) costs what a cosine density does to integrate, and is
+/// rejected. (Its cells were refined to every piece's limit against a tolerance meant for a
+/// total of 1: `check` took 424 s.)
+#[test]
+fn an_absurd_reported_density_is_integrated_at_its_own_scale() {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    let v = Validation::of_fcos(
+        |w: Vec3| f64::from(w.z.max(0.0)) / std::f64::consts::PI,
+        &[],
+        CellGrid::Square { res: 25 },
+        1e-7,
+    )
+    .unwrap();
+    let own = |scale: f64| {
+        let calls = AtomicU64::new(0);
+        let p = v.own_probability(&|w: Vec3| {
+            calls.fetch_add(1, Ordering::Relaxed);
+            scale * f64::from(w.z.max(0.0)) / std::f64::consts::PI
+        });
+        (calls.into_inner(), p.iter().sum::<f64>())
+    };
+    let (base, sum) = own(1.0);
+    let (huge, huge_sum) = own(3e38);
+    assert!(huge <= 2 * base, "{huge} evaluations against {base}");
+    // (Each cell to its own tolerance: 625 of them sum to within 10⁻⁵.)
+    assert!((sum - 1.0).abs() < 1e-5, "{sum}");
+    assert!((huge_sum / 3e38 - 1.0).abs() < 1e-5, "{huge_sum}");
+}
