@@ -265,18 +265,29 @@ impl Validation {
         };
         // The tolerance is relative to a total of 1, what a density sums to; a sampler that
         // reports a density many times too large (3·10³⁸ everywhere) had its cells refined
-        // to every piece's limit: `check` took 424 s. Where a first unrefined total over a
-        // coarse grid exceeds 2, the tolerance follows it (a density that sums to 1 keeps
-        // its tolerance, and its probabilities, bit for bit).
-        let rough: f64 = CellGrid::Polar {
+        // to every piece's limit: `check` took 424 s. So, as for the masses, a coarse 8 × 16
+        // polar grid first: unrefined, and only where that exceeds 2 (a density that sums
+        // to 1 may, when a node lands on a needle), refined to 10⁻³ of it; where that total
+        // still exceeds 4, the tolerance follows it. A density that sums to 1 keeps its
+        // tolerance, and its probabilities, bit for bit.
+        let coarse = CellGrid::Polar {
             rings: 8,
             sectors: 16,
-        }
-        .integrate_all(f64::INFINITY, &all, &per_area)
-        .iter()
-        .sum();
+        };
+        let rough: f64 = coarse
+            .integrate_all(f64::INFINITY, &all, &per_area)
+            .iter()
+            .sum();
         let rel = if rough.is_finite() && rough > 2.0 {
-            rel * rough
+            let total: f64 = coarse
+                .integrate_all(1e-3 * rough, &all, &per_area)
+                .iter()
+                .sum();
+            if total.is_finite() && total > 4.0 {
+                rel * total
+            } else {
+                rel
+            }
         } else {
             rel
         };
