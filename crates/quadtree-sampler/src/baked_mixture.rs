@@ -220,7 +220,6 @@ impl BakedSampler {
     ) -> usize {
         debug_assert!(out.is_empty());
         let g = given.as_dvec3();
-        let mut n = 0;
         let mut sum = 0.0;
         // Isotropic: fold by the rotation about z by −φ (from cos φ and sin φ without
         // trigonometry) onto (sin θ, 0, cos θ); each neighbour's map to the local frame is the
@@ -257,7 +256,7 @@ impl BakedSampler {
             if w <= 0.0 || !tables.slices[slice].live {
                 continue;
             }
-            if let Some(c) = out[..n].iter_mut().find(|c| c.slice == slice) {
+            if let Some(c) = out.iter_mut().find(|c| c.slice == slice) {
                 c.weight += w;
                 sum += w;
                 continue;
@@ -285,12 +284,11 @@ impl BakedSampler {
                 to_local,
                 half,
             });
-            n += 1;
             sum += w;
         }
-        if sum != 1.0 && n > 0 {
+        if sum != 1.0 && !out.is_empty() {
             let inv = 1.0 / sum;
-            for c in &mut out[..n] {
+            for c in out.iter_mut() {
                 c.weight *= inv;
             }
         }
@@ -305,6 +303,7 @@ impl BakedSampler {
         // most the default grid's spacing: see `beyond_last_row`).
         let beyond = self.grid.beyond_last_row(gc);
         // (Beyond the last row only that row has weight: at most two components, doubled.)
+        let n = out.len();
         if beyond > 0.0 && n <= 2 {
             for k in 0..n {
                 let c = out[k];
@@ -326,9 +325,8 @@ impl BakedSampler {
                     half: None,
                 });
             }
-            n *= 2;
         }
-        n
+        out.len()
     }
 
     /// Component `c`'s density at local `wo`, per unit solid angle. `drawn`: what the draw
