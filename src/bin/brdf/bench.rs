@@ -150,13 +150,14 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
     // environments a sample, which the baked loops do not pay: dividing them by it
     // flattered them by about a tenth (146–151 ns here against 164–171 ns).
     let random_inputs = random_wi_inputs(samples.min(300_000), args.seed);
-    let beckmann_random_ns = time_random_wi(
-        &random_inputs,
-        args.seed,
-        bench::TIMING_RUNS,
-        |&(wi, uc, u), _| beckmann_model.sample(wi, uc, u).map(|s| s.wo),
-    )
-    .0;
+    let mut drawn = Vec::new();
+    let beckmann_random_ns = (0..bench::TIMING_RUNS)
+        .map(|_| {
+            time_random_wi(&random_inputs, args.seed, &mut drawn, |&(wi, uc, u), _| {
+                beckmann_model.sample(wi, uc, u).map(|s| s.wo)
+            })
+        })
+        .fold(f64::INFINITY, f64::min);
     let mut rows = Vec::new();
     let mut table = String::new();
     let mut baked_table = String::new();
@@ -500,28 +501,26 @@ fn random_wi_inputs(n: u64, seed: u64) -> Vec<RandomInput> {
         .collect()
 }
 
-/// ns per call of `sample` over `inputs` (the fastest of `runs` runs, each with a fresh RNG
-/// from `seed` for the rejection trials), and the directions it drew: the one loop both the
-/// baked samplers and their Beckmann yardstick are timed in.
+/// ns per call of `sample` over `inputs` in one run (a fresh RNG from `seed` for the
+/// rejection trials), the directions it drew left in `out` (cleared first; reused from run
+/// to run, so that its pages are touched once, not timed every run): the one loop both the
+/// baked samplers and their Beckmann yardstick are timed in (each caller keeps its fastest
+/// run).
 fn time_random_wi(
     inputs: &[RandomInput],
     seed: u64,
-    runs: usize,
+    out: &mut Vec<Option<brdf_sampling::glam::Vec3>>,
     mut sample: impl FnMut(&RandomInput, &mut rand_pcg::Pcg64) -> Option<brdf_sampling::glam::Vec3>,
-) -> (f64, Vec<Option<brdf_sampling::glam::Vec3>>) {
-    let mut out = Vec::with_capacity(inputs.len());
-    let mut best = f64::INFINITY;
-    for _ in 0..runs {
-        let t0 = Instant::now();
-        let mut r = rand_pcg::Pcg64::seed_from_u64(seed);
-        out.clear();
-        for input in inputs {
-            out.push(sample(input, &mut r));
-        }
-        std::hint::black_box(&out);
-        best = best.min(t0.elapsed().as_secs_f64() * 1e9 / inputs.len().max(1) as f64);
+) -> f64 {
+    out.clear();
+    out.reserve(inputs.len());
+    let t0 = Instant::now();
+    let mut r = rand_pcg::Pcg64::seed_from_u64(seed);
+    for input in inputs {
+        out.push(sample(input, &mut r));
     }
-    (best, out)
+    std::hint::black_box(&*out);
+    t0.elapsed().as_secs_f64() * 1e9 / inputs.len().max(1) as f64
 }
 
 fn random_wi_timing(
@@ -536,20 +535,19 @@ fn random_wi_timing(
     // timing the yardstick once for every set let a ratio swing by a third between two
     // runs of the same binary (lambert's warp 0.81 and 1.06).
     let mut best = [f64::INFINITY; 3];
-    let mut drawn = [Vec::new(), Vec::new()];
+    let mut drawn = [Vec::new(), Vec::new(), Vec::new()];
     for _ in 0..bench::TIMING_RUNS {
-        best[0] = best[0].min(
-            time_random_wi(inputs, seed, 1, |&(wi, uc, u), _| {
-                beckmann.sample(wi, uc, u).map(|s| s.wo)
-            })
-            .0,
-        );
+        best[0] = best[0].min(time_random_wi(
+            inputs,
+            seed,
+            &mut drawn[2],
+            |&(wi, uc, u), _| beckmann.sample(wi, uc, u).map(|s| s.wo),
+        ));
         for (k, b) in [baked, warp].into_iter().enumerate() {
-            let (ns, out) = time_random_wi(inputs, seed, 1, |&(wi, uc, u), r| {
+            let ns = time_random_wi(inputs, seed, &mut drawn[k], |&(wi, uc, u), r| {
                 b.sample(wi, uc, u, r).ok().flatten().map(|s| s.wo)
             });
             best[k + 1] = best[k + 1].min(ns);
-            drawn[k] = out;
         }
     }
     let pdf_time = |b: &BakedSampler, out: &[Option<brdf_sampling::glam::Vec3>]| {
