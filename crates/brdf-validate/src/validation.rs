@@ -74,6 +74,19 @@ pub struct Validation {
     mass: Vec<f64>,
 }
 
+/// ∫ g dA summed over the coarse 8 × 16 polar grid whose total sets the scale of the
+/// masses' and of a sampler's own probabilities' tolerances, each cell to `tol` (∞: the
+/// rules' first pieces, unrefined).
+fn coarse_total(g: &(dyn Fn(Vec3) -> f64 + Sync), hints: &Hints, tol: f64) -> f64 {
+    CellGrid::Polar {
+        rings: 8,
+        sectors: 16,
+    }
+    .integrate_all(tol, hints, g)
+    .iter()
+    .sum()
+}
+
 impl Validation {
     /// Integrates the luminance of f_r(wi, ·) over every cell. `tol` is the absolute error
     /// allowed per cell **relative to the total** (1e-7: for 10⁶ samples, 0.1 expected sample
@@ -163,23 +176,13 @@ impl Validation {
         // f·cos of magnitude 10¹⁰⁰ held to 10⁻³ absolute refined every piece to its limit
         // (24 s for a constant; 10³⁰⁰ everywhere made `check` take 352 s), while every f·cos
         // whose total is at most about 1 keeps the tolerance, and the masses, it had.
-        let coarse_grid = CellGrid::Polar {
-            rings: 8,
-            sectors: 16,
-        };
-        let rough: f64 = coarse_grid
-            .integrate_all(f64::INFINITY, &hints, g)
-            .iter()
-            .sum();
+        let rough = coarse_total(g, &hints, f64::INFINITY);
         let scale = if rough.is_finite() {
             rough.abs().max(1.0)
         } else {
             1.0
         };
-        let coarse: f64 = coarse_grid
-            .integrate_all(1e-3 * scale, &hints, g)
-            .iter()
-            .sum();
+        let coarse = coarse_total(g, &hints, 1e-3 * scale);
         // The coarse grid's nodes can miss a lobe whole (a needle narrower than their
         // spacing, with no peak hint to cut at): its total was then 0, the tolerance 0, and
         // every cell of the grid that did see the lobe was refined to every piece's limit (a
@@ -270,19 +273,9 @@ impl Validation {
         // to 1 may, when a node lands on a needle), refined to 10⁻³ of it; where that total
         // still exceeds 4, the tolerance follows it. A density that sums to 1 keeps its
         // tolerance, and its probabilities, bit for bit.
-        let coarse = CellGrid::Polar {
-            rings: 8,
-            sectors: 16,
-        };
-        let rough: f64 = coarse
-            .integrate_all(f64::INFINITY, &all, &per_area)
-            .iter()
-            .sum();
+        let rough = coarse_total(&per_area, &all, f64::INFINITY);
         let rel = if rough.is_finite() && rough > 2.0 {
-            let total: f64 = coarse
-                .integrate_all(1e-3 * rough, &all, &per_area)
-                .iter()
-                .sum();
+            let total = coarse_total(&per_area, &all, 1e-3 * rough);
             if total.is_finite() && total > 4.0 {
                 rel * total
             } else {
