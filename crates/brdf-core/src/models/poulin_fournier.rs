@@ -60,8 +60,8 @@ impl Visible {
 /// reaches the lobe's tail). A piece that ends next to that variable's singular point is
 /// integrated instead by 8-point Gauss–Legendre on sub-intervals that grow geometrically
 /// away from the peak (so a lobe of exponent 10⁵ is resolved as well as one of 1), graded
-/// toward the lobe's cut-off. Never across a visibility end. Reciprocal; energy-conserving (no inter-reflection, so energy
-/// is lost).
+/// toward the lobe's cut-off. Never across a visibility end. Reciprocal; energy-conserving
+/// (no inter-reflection, so energy is lost).
 /// No analytic sampler: cosine sampling is its baseline.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PoulinFournier {
@@ -637,13 +637,12 @@ impl LobeIntegrand {
 ///
 /// q peaks at φ* = (ψi + ψo)/2 and falls monotonically away from it, so [a, b] is split at
 /// φ*. With a `table` (the model has one for every n > 0) each piece is integrated in the
-/// lobe's Gaussian variable ([`LobeTable::piece`]) where that can. Otherwise the piece is cut
-/// where the lobe
-/// reaches 0 (cos 2x = wi.x·wo.x/(|wi.yz||wo.yz|) at x = φ − φ*), and is covered by
-/// Gauss–Legendre panels of widths δ, 2δ, 4δ, ... from its peak end, δ the lobe's e-folding
-/// width there; the panels stop at [`LOBE_REL_STOP`].
-/// The nodes' offsets double with the panels' widths, and every sine and cosine is of an
-/// angle within ±π/2 ([`m::sin_cos_small`]).
+/// lobe's Gaussian variable ([`LobeTable::piece`]) where that can. Otherwise the piece is
+/// cut where the lobe reaches 0 (cos 2x = wi.x·wo.x/(|wi.yz||wo.yz|) at x = φ − φ*), and is
+/// covered by Gauss–Legendre panels of widths δ, 2δ, 4δ, ... from its peak end, δ the lobe's
+/// e-folding width there; the panels stop at [`LOBE_REL_STOP`]. The nodes' offsets double
+/// with the panels' widths, and every sine and cosine is of an angle within ±π/2
+/// ([`m::sin_cos_small`]).
 fn lobe_integral(
     wi: DVec3,
     wo: DVec3,
