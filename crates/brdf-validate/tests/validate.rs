@@ -674,3 +674,63 @@ fn an_absurd_reported_density_is_integrated_at_its_own_scale() {
     assert!((sum - 1.0).abs() < 1e-5, "{sum}");
     assert!((huge_sum / 3e38 - 1.0).abs() < 1e-5, "{huge_sum}");
 }
+
+/// An oracle that is NaN over part of the disk (a broken BSDF) costs what a finite one
+/// does to integrate: its finite cells set the tolerance. The cells it touches are NaN, the
+/// others are integrated as from the finite oracle, and `check` rejects it for masses that
+/// are not a distribution. (Its NaN coarse total made the tolerance 10⁻³⁰⁷ absolute and
+/// refined every finite cell to every piece's limit: 5.6–13 s a `check`.)
+#[test]
+fn an_oracle_nan_on_part_of_the_disk_is_integrated_at_its_finite_scale() {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    let cosine = |w: Vec3| 0.8 * f64::from(w.z.max(0.0)) / std::f64::consts::PI;
+    let run = |spot: bool| {
+        let calls = AtomicU64::new(0);
+        let f = |w: Vec3| {
+            calls.fetch_add(1, Ordering::Relaxed);
+            if spot && w.x > 0.5 {
+                f64::NAN
+            } else {
+                cosine(w)
+            }
+        };
+        let v = Validation::of_fcos(f, &[], CellGrid::Square { res: 25 }, 1e-7).unwrap();
+        (calls.into_inner(), v.mass().to_vec())
+    };
+    let (base, good) = run(false);
+    let (calls, spotted) = run(true);
+    assert!(calls <= 2 * base, "{calls} evaluations against {base}");
+    let nan = spotted.iter().filter(|m| m.is_nan()).count();
+    assert!(nan > 0 && nan < spotted.len(), "{nan} NaN cells");
+    // A finite cell of the spotted oracle lies wholly at x ≤ 0.5, where the two agree,
+    // each to its tolerance (10⁻⁷ of a total of 0.8, or of the finite cells' 0.6).
+    for (a, b) in good.iter().zip(&spotted) {
+        if b.is_finite() {
+            assert!(
+                (a - b).abs() <= 2e-7,
+                "cell {} {a} {b}",
+                good.iter().position(|x| x == a).unwrap()
+            );
+        }
+    }
+    let sampler = brdf_validate::FnSampler::new(
+        "cosine",
+        |_, u| {
+            let w = brdf_core::warp::sample_cosine_hemisphere(u);
+            Some((w, brdf_core::warp::cosine_hemisphere_pdf(w.z)))
+        },
+        |w: Vec3| brdf_core::warp::cosine_hemisphere_pdf(w.z),
+    );
+    let settings = brdf_validate::Settings {
+        samples: 20_000,
+        ..brdf_validate::Settings::default()
+    };
+    let report = brdf_validate::check(
+        &sampler,
+        |w: Vec3| if w.x > 0.5 { f64::NAN } else { cosine(w) },
+        &[],
+        &settings,
+    )
+    .unwrap();
+    assert_eq!(report.verdict(), Verdict::Rejected, "{report}");
+}
