@@ -407,9 +407,23 @@ impl CellGrid {
                 let (y0, y1) = (-1.0 + h * iy as f64, -1.0 + h * (iy + 1) as f64);
                 let (s0, s1) = (m::asin(x0.max(-1.0)), m::asin(x1.min(1.0)));
                 let inner_tol = 0.1 * tol / (s1 - s0).max(1e-300);
+                let mut s_breaks = Breaks::new();
+                // Where the cell's rows y = y0 and y = y1 meet the rim (cos s = |y|), the
+                // inner range switches between the row and the rim: a kink of the outer
+                // integrand, which the rule's error estimate can miss (a rim cell of a
+                // constant f·cos/cos θ came out 0.65 % off, 4.4 times its tolerance).
+                // Cut there first (never crowded out by the hints' breaks), so that each
+                // piece is smooth where the integrand is.
+                for y in [y0, y1] {
+                    let c = y.abs();
+                    if c > 0.0 && c < 1.0 {
+                        let s = m::acos(c);
+                        s_breaks.push(s);
+                        s_breaks.push(-s);
+                    }
+                }
                 // The peaks' x, and where a ridge plane touches a line of constant x (for an
                 // axis plane x = h.x, that line itself).
-                let mut s_breaks = Breaks::new();
                 let mut push_x = |x: f64| s_breaks.push(m::asin(x.clamp(-1.0, 1.0)));
                 for p in &hints.peaks {
                     push_x(p.x);

@@ -734,3 +734,75 @@ fn an_oracle_nan_on_part_of_the_disk_is_integrated_at_its_finite_scale() {
     .unwrap();
     assert_eq!(report.verdict(), Verdict::Rejected, "{report}");
 }
+
+/// The area of the unit disk within [x0, x1] × [y0, y1], in closed form: the height of the
+/// column at x, min(y1, h) − max(y0, −h) with h = √(1 − x²) (0 where negative), is one
+/// expression between the x where h meets |y0| or |y1|, each integrated exactly
+/// (∫ h dx = (x·h + asin x)/2).
+fn disk_area_in(x0: f64, x1: f64, y0: f64, y1: f64) -> f64 {
+    let h = |x: f64| (1.0 - x * x).max(0.0).sqrt();
+    let hint = |x: f64| 0.5 * (x * h(x) + x.clamp(-1.0, 1.0).asin());
+    let mut cuts = vec![x0.max(-1.0), x1.min(1.0)];
+    for y in [y0, y1] {
+        if y.abs() < 1.0 {
+            let x = (1.0 - y * y).sqrt();
+            cuts.extend([x, -x]);
+        }
+    }
+    let (lo, hi) = (cuts[0], cuts[1]);
+    let mut cuts: Vec<f64> = cuts.into_iter().filter(|&x| x >= lo && x <= hi).collect();
+    cuts.sort_by(f64::total_cmp);
+    cuts.windows(2)
+        .map(|w| {
+            let (p, q) = (w[0], w[1]);
+            let mid = 0.5 * (p + q);
+            let hm = h(mid);
+            if y1.min(hm) - y0.max(-hm) <= 0.0 {
+                return 0.0;
+            }
+            // Each bound is a row (a constant) or the rim (±h) over the whole piece.
+            let top = if y1 < hm {
+                y1 * (q - p)
+            } else {
+                hint(q) - hint(p)
+            };
+            let bottom = if y0 > -hm {
+                y0 * (q - p)
+            } else {
+                -(hint(q) - hint(p))
+            };
+            top - bottom
+        })
+        .sum()
+}
+
+/// Every cell of the square grid, rim cells included, holds a constant per-area density's
+/// mass to its tolerance: the exact area of the cell within the disk, in closed form. Where
+/// a cell's row meets the rim the column's height has a kink, which the rule's error
+/// estimate missed: a rim cell came out 0.65 % high, 4.4 times its tolerance, and the 625
+/// cells summed to 1.7·10⁻⁶ over the total at a tolerance of 10⁻⁷.
+#[test]
+fn square_rim_cells_hold_their_exact_area() {
+    let k = 1.0 / std::f64::consts::PI;
+    for res in [25usize, 7] {
+        let v = Validation::of_fcos(
+            |w: Vec3| k * f64::from(w.z.max(0.0)),
+            &[],
+            CellGrid::Square { res },
+            1e-7,
+        )
+        .unwrap();
+        let side = 2.0 / res as f64;
+        let mut worst = 0.0f64;
+        for (i, &mass) in v.mass().iter().enumerate() {
+            let (ix, iy) = ((i % res) as f64, (i / res) as f64);
+            let (x0, y0) = (-1.0 + side * ix, -1.0 + side * iy);
+            let exact = k * disk_area_in(x0, x0 + side, y0, y0 + side);
+            worst = worst.max((mass - exact).abs());
+        }
+        // The total is 1: each cell within 10⁻⁷ of it.
+        assert!(worst <= 1e-7, "{res}×{res}: a cell {worst:e} off");
+        let sum: f64 = v.mass().iter().sum();
+        assert!((sum - 1.0).abs() <= 1e-7, "{res}×{res}: total {sum}");
+    }
+}
