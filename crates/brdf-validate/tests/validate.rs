@@ -802,3 +802,26 @@ fn square_rim_cells_hold_their_exact_area() {
         assert!((sum - 1.0).abs() <= 1e-7, "{res}×{res}: total {sum}");
     }
 }
+
+/// The polar grid's cells are of equal area (π over their number): a constant per-area
+/// density gives every one, at the pole and at the rim, the same mass to its tolerance.
+#[test]
+fn polar_cells_of_a_constant_hold_equal_masses() {
+    let k = 1.0 / std::f64::consts::PI;
+    for (rings, sectors) in [(25usize, 51usize), (7, 15)] {
+        let v = Validation::of_fcos(
+            |w: Vec3| k * f64::from(w.z.max(0.0)),
+            &[],
+            CellGrid::Polar { rings, sectors },
+            1e-7,
+        )
+        .unwrap();
+        let exact = 1.0 / (rings * sectors) as f64;
+        let worst = v
+            .mass()
+            .iter()
+            .map(|m| (m - exact).abs())
+            .fold(0.0f64, f64::max);
+        assert!(worst <= 1e-7, "{rings}×{sectors}: a cell {worst:e} off");
+    }
+}
