@@ -199,17 +199,16 @@ impl Validation {
             _ => {
                 let cells = grid.integrate_all(f64::INFINITY, &hints, g);
                 let fine: f64 = cells.iter().sum();
-                let finite: f64 = cells
-                    .iter()
-                    .filter(|m| m.is_finite())
-                    .map(|m| m.abs())
-                    .sum();
                 if fine.is_finite() && fine.abs() > coarse.abs() {
                     fine.abs()
                 } else if coarse.is_finite() {
                     coarse.abs()
                 } else {
-                    finite
+                    cells
+                        .iter()
+                        .filter(|m| m.is_finite())
+                        .map(|m| m.abs())
+                        .sum()
                 }
             }
         };
