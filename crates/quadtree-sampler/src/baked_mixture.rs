@@ -3,7 +3,8 @@
 //!
 //! `wi` is first folded into the grid's domain by its symmetries (a rotation about z, or
 //! reflections in x and y: both preserve solid angle and f_r). Its neighbouring grid trees k
-//! get interpolation weights w_k (linear in θi, bilinear in (θi, φi); in rejection mode, in a
+//! get interpolation weights w_k (linear in θi; in (θi, φi) linear on the triangle of the
+//! cell that holds wi, three trees at most; in rejection mode, in a
 //! cell where the bake measured that neighbouring trees sample each other's densities as
 //! well as their own, the nearer tree along that axis takes the whole weight: one model
 //! evaluation fewer a sample and a pdf, see `baked_nearest`). A sharp lobe moves
@@ -93,8 +94,8 @@ static BLEND: Nearest = Nearest {
     phi: alloc::vec::Vec::new(),
 };
 
-/// A query's mixture components, on the stack: at most two neighbours along θi and two along
-/// φi, or the last row's up to two trees twice beyond it. (Not an array of placeholders: four
+/// A query's mixture components, on the stack: at most two neighbours along θi, three on a
+/// cell's triangle in (θi, φi), or the last row's up to two trees twice beyond it. (Not an array of placeholders: four
 /// of those, 168 bytes each, were copied in on every sample and pdf.)
 pub(crate) type Components = arrayvec::ArrayVec<Component, 4>;
 
