@@ -556,6 +556,97 @@ mod tests {
         assert_eq!(fast_atan2(0.0, 1.0), 0.0);
     }
 
+    /// On an anisotropic grid a query blends at most three trees (the corners of the
+    /// triangle of its cell that holds it), with weights that are non-negative, sum to one
+    /// and reproduce its own place in the grid (linear interpolation: the weighted mean of
+    /// the trees' row and column indices is the query's), over every φ domain, wrap-around
+    /// included; where a cell snaps along an axis, that axis takes the nearer tree's index.
+    #[test]
+    fn anisotropic_queries_blend_a_triangle_linearly() {
+        let domains = [
+            (true, true, PhiDomain::Quadrant),
+            (false, true, PhiDomain::UpperHalf),
+            (true, false, PhiDomain::RightHalf),
+            (false, false, PhiDomain::Circle),
+        ];
+        for (mirror_x, mirror_y, domain) in domains {
+            let sym = Symmetry {
+                mirror_x,
+                mirror_y,
+                ..Symmetry::default()
+            };
+            let g = BakeGrid::new(sym, 7, 5).unwrap();
+            assert_eq!(g.domain(), domain);
+            let np = g.phis.len();
+            let mut snapped = Nearest {
+                theta: alloc::vec![false; g.cells()],
+                phi: alloc::vec![false; g.cells()],
+            };
+            for k in 0..g.cells() {
+                snapped.theta[k] = k % 3 == 1;
+                snapped.phi[k] = k % 4 == 2;
+            }
+            let (lo, hi) = domain.range();
+            let hi = if domain == PhiDomain::Circle { TAU } else { hi };
+            for k in 0..4000u32 {
+                // θ over the grid's rows (not beyond), φ over the domain.
+                let theta = GRID_THETA_MAX_DEG.to_radians() * (f64::from(k % 61) + 0.5) / 61.0;
+                let phi = lo + (hi - lo) * (f64::from(k / 61) + 0.37) / 66.0;
+                let w = DVec3::new(
+                    theta.sin() * phi.cos(),
+                    theta.sin() * phi.sin(),
+                    theta.cos(),
+                );
+                for nearest in [&Nearest::default(), &snapped] {
+                    let n = g.neighbours(w, nearest);
+                    let used: alloc::vec::Vec<_> = n.iter().filter(|e| e.1 > 0.0).collect();
+                    assert!(used.len() <= 3, "{domain:?} {theta} {phi}: {n:?}");
+                    assert!(n.iter().all(|e| e.1 >= 0.0), "{n:?}");
+                    let sum: f64 = n.iter().map(|e| e.1).sum();
+                    assert!((sum - 1.0).abs() < 1e-12, "{n:?}");
+                    // The query's place, as `neighbours` finds it (fast_acos, fast_atan2).
+                    let t = (fast_acos(w.z) * g.rows_per_radian).clamp(0.0, 6.0);
+                    let mut a = fast_atan2(w.y, w.x);
+                    if domain == PhiDomain::Circle && a < 0.0 {
+                        a += TAU;
+                    }
+                    let p = if domain == PhiDomain::Circle {
+                        a / (TAU / np as f64)
+                    } else {
+                        (a.clamp(lo, hi) - lo) / (hi - lo) * (np - 1) as f64
+                    };
+                    let (i, j) = (
+                        (t as usize).min(5),
+                        (p as usize).min(np - 2 + usize::from(domain == PhiDomain::Circle)),
+                    );
+                    // Unwrap the column past the last one on the circle.
+                    let col = |slice: usize| {
+                        let c = slice % np;
+                        if c < j { c + np } else { c }
+                    };
+                    let (mut mt, mut mp) = (0.0, 0.0);
+                    for &&(slice, wt) in &used {
+                        mt += wt * (slice / np) as f64;
+                        mp += wt * col(slice) as f64;
+                    }
+                    let cell = i * g.phi_cells() + j;
+                    let want_t = if nearest.theta.get(cell) == Some(&true) {
+                        i as f64 + snap(t - i as f64)
+                    } else {
+                        t
+                    };
+                    let want_p = if nearest.phi.get(cell) == Some(&true) {
+                        j as f64 + snap(p - j as f64)
+                    } else {
+                        p
+                    };
+                    assert!((mt - want_t).abs() < 1e-9, "{domain:?} θ {mt} vs {want_t}");
+                    assert!((mp - want_p).abs() < 1e-9, "{domain:?} φ {mp} vs {want_p}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn beyond_the_last_row_is_measured_in_row_spacings() {
         let sym = Symmetry {
