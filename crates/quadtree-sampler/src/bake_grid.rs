@@ -1,9 +1,10 @@
 //! The grid of incident directions a [`crate::BakedSampler`] bakes trees at (SPEC §7): θi
 //! rows to [`crate::GRID_THETA_MAX_DEG`], φi columns over the [`PhiDomain`] the model's
 //! declared symmetries leave, each wi folded into that domain; the neighbour weights of any
-//! wi (linear in θ; in (θ, φ) linear on the two triangles of each cell, snapped to the nearest tree along an axis in the
-//! cells where the bake measured that its neighbours agree: [`Nearest`]); and the rotations
-//! that carry a neighbour's tree onto wi's mirror direction (the isotropic ones written out).
+//! wi (linear in θ; in (θ, φ) linear on the two triangles of each cell, snapped to the
+//! nearest tree along an axis in the cells where the bake measured that its neighbours
+//! agree: [`Nearest`]); and the rotations that carry a neighbour's tree onto wi's mirror
+//! direction (the isotropic ones written out).
 
 use crate::baked::{GRID_THETA_MAX_DEG, MAX_TREES};
 use crate::error::BakeError;
@@ -277,9 +278,10 @@ impl BakeGrid {
     }
 
     /// The neighbouring trees of a folded direction `w` (unit, z > 0) and their weights
-    /// (summing to 1; linear in θ, linear on a cell's triangles in (θ, φ), except along an axis that `nearest`
-    /// snaps in `w`'s cell: there the nearer tree takes the whole weight); unused entries
-    /// have weight 0. Any weights that are a function of `w` alone keep the mixture exact.
+    /// (summing to 1; linear in θ, linear on a cell's triangles in (θ, φ), except along an
+    /// axis that `nearest` snaps in `w`'s cell: there the nearer tree takes the whole
+    /// weight); unused entries have weight 0. Any weights that are a function of `w` alone
+    /// keep the mixture exact.
     #[inline]
     pub(crate) fn neighbours(&self, w: DVec3, nearest: &Nearest) -> [(usize, f64); 4] {
         let theta = fast_acos(w.z);

@@ -4,10 +4,10 @@
 //! `wi` is first folded into the grid's domain by its symmetries (a rotation about z, or
 //! reflections in x and y: both preserve solid angle and f_r). Its neighbouring grid trees k
 //! get interpolation weights w_k (linear in θi; in (θi, φi) linear on the triangle of the
-//! cell that holds wi, three trees at most; in rejection mode, in a
-//! cell where the bake measured that neighbouring trees sample each other's densities as
-//! well as their own, the nearer tree along that axis takes the whole weight: one model
-//! evaluation fewer a sample and a pdf, see `baked_nearest`). A sharp lobe moves
+//! cell that holds wi, three trees at most; in rejection mode, in a cell where the bake
+//! measured that neighbouring trees sample each other's densities as well as their own,
+//! the nearer tree along that axis takes the whole weight: one model evaluation fewer a
+//! sample and a pdf, see `baked_nearest`). A sharp lobe moves
 //! with `wi` faster than any affordable grid follows, so each neighbour is not used as is:
 //! its directions are **rotated by the rotation R_k that carries the grid direction's mirror
 //! r(wi_k) onto r(wi)** — the lobe of tree k then sits where the lobe of `wi` is. A rotation
