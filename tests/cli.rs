@@ -664,6 +664,61 @@ fn bench_reports_ratios_from_unbiased_estimates() {
         }
     }
     let samplers = set["samplers"].as_array().unwrap();
+    // Each efficiency ratio's relative standard error is its two variances' in quadrature.
+    let rel = |name: &str, env: &str| {
+        let s = samplers.iter().find(|s| s["sampler"] == name).unwrap();
+        let (v, se) = (
+            s[env]["variance"].as_f64().unwrap(),
+            s[env]["variance_se"].as_f64().unwrap(),
+        );
+        assert!(se.is_finite() && se >= 0.0, "{name} {env}: {se}");
+        se / v
+    };
+    for (key, a, b, env) in [
+        (
+            "efficiency_quadtree_over_cosine",
+            "quadtree",
+            "cosine",
+            "sky_and_sun",
+        ),
+        (
+            "efficiency_quadtree_over_analytic",
+            "quadtree",
+            "analytic",
+            "sky_and_sun",
+        ),
+        (
+            "efficiency_quadtree_over_table",
+            "quadtree",
+            "table",
+            "sky_and_sun",
+        ),
+        (
+            "glint_efficiency_quadtree_over_cosine",
+            "quadtree",
+            "cosine",
+            "glint",
+        ),
+        (
+            "efficiency_baked_over_analytic",
+            "baked-rejection",
+            "analytic",
+            "sky_and_sun",
+        ),
+        (
+            "efficiency_baked_warp_over_quadtree",
+            "baked-warp",
+            "quadtree",
+            "sky_and_sun",
+        ),
+    ] {
+        let r = set["ratios_rse"][key].as_f64().unwrap();
+        let want = rel(a, env).hypot(rel(b, env));
+        assert!(
+            r > 0.0 && (r - want).abs() <= 1e-12 * want,
+            "{key}: {r} vs {want}"
+        );
+    }
     let n = 2_000_000.0;
     for env in ["sky_and_sun", "glint"] {
         let q = samplers

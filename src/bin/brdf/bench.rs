@@ -79,11 +79,17 @@ impl Measured {
         self.estimates[0].seconds_per_sample * 1e9
     }
 
+    /// The relative standard error of `self.efficiency(env) / other.efficiency(env)`.
+    fn ratio_rse(&self, other: &Self, env: usize) -> f64 {
+        bench::efficiency_ratio_rse(&self.estimates[env], &other.estimates[env])
+    }
+
     fn json(&self) -> Value {
         let per_env = |k: usize| {
             json!({
                 "mean": self.estimates[k].mean,
                 "variance": self.estimates[k].variance,
+                "variance_se": self.estimates[k].variance_se,
                 "efficiency": self.efficiency(k),
             })
         };
@@ -284,10 +290,14 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
                 get("analytic").expect("measured"),
             );
             let e = |a: &Measured, b: &Measured| a.efficiency(0) / b.efficiency(0);
+            let worst = [(br, ana), (br, qm), (bw, ana), (bw, qm)]
+                .iter()
+                .map(|(a, b)| a.ratio_rse(b, 0))
+                .fold(0.0, f64::max);
             use std::fmt::Write as _;
             let _ = writeln!(
                 baked_table,
-                "| {label} | {} | {} | {} | {:.2} | {} | {:.0} | {:.2} | {:.0} | {:.2} | {:.0} | {:.0} | {} | {} | {} | {} | {:.0} |",
+                "| {label} | {} | {} | {} | {:.2} | {} | {:.0} | {:.2} | {:.0} | {:.2} | {:.0} | {:.0} | {} | {} | {} | {} | {:.0} | {:.0} % |",
                 baked.trees(),
                 baked.nodes(),
                 baked.bytes(),
@@ -304,6 +314,7 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
                 ratio(e(bw, ana)),
                 ratio(e(bw, qm)),
                 random.beckmann_ns,
+                100.0 * worst,
             );
         }
         let baked_json = json!({
@@ -329,6 +340,8 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
         let ns = Measured::ns;
         let eff = |a: &Measured, b: &Measured| a.efficiency(0) / b.efficiency(0);
         let glint = |a: &Measured, b: &Measured| a.efficiency(1) / b.efficiency(1);
+        let rse = |a: &Measured, b: &Measured| a.ratio_rse(b, 0);
+        let glint_rse = |a: &Measured, b: &Measured| a.ratio_rse(b, 1);
         let bytes_per_node = stats.bytes as f64 / stats.nodes.max(1) as f64;
         let speedup = build_serial / build_parallel;
         let tgt = get("quadtree-target-1.25");
@@ -369,12 +382,32 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
                 "efficiency_baked_warp_over_analytic": get("baked-warp").map(|m| eff(m, ana)),
                 "efficiency_baked_warp_over_quadtree": get("baked-warp").map(|m| eff(m, qm)),
             },
+            // The relative standard error of each efficiency ratio above (its two variance
+            // estimates' relative errors in quadrature): how far the ratio may move with
+            // another sample stream.
+            "ratios_rse": {
+                "efficiency_quadtree_over_cosine": rse(qm, cos),
+                "efficiency_quadtree_over_analytic": rse(qm, ana),
+                "efficiency_quadtree_over_table": rse(qm, tab),
+                "efficiency_target_over_analytic": tgt.map(|t| rse(t, ana)),
+                "glint_efficiency_quadtree_over_cosine": glint_rse(qm, cos),
+                "glint_efficiency_quadtree_over_analytic": glint_rse(qm, ana),
+                "efficiency_baked_over_analytic": get("baked-rejection").map(|m| rse(m, ana)),
+                "efficiency_baked_over_quadtree": get("baked-rejection").map(|m| rse(m, qm)),
+                "efficiency_baked_warp_over_analytic": get("baked-warp").map(|m| rse(m, ana)),
+                "efficiency_baked_warp_over_quadtree": get("baked-warp").map(|m| rse(m, qm)),
+            },
         }));
+        let worst = [(qm, cos), (qm, ana), (qm, tab)]
+            .iter()
+            .map(|&(a, b)| rse(a, b).max(glint_rse(a, b)))
+            .chain(tgt.map(|t| rse(t, ana)))
+            .fold(0.0, f64::max);
         let opt = |v: Option<f64>, p: usize| v.map_or_else(|| "–".into(), |v| format!("{v:.p$}"));
         use std::fmt::Write as _;
         let _ = writeln!(
             table,
-            "| {label} | {} | {:.2} | {bytes_per_node:.0} | {:.1} | {speedup:.2} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2} | {} | {} | {} | {} | {} | {} | {:.2} | {} | {} | {} |",
+            "| {label} | {} | {:.2} | {bytes_per_node:.0} | {:.1} | {speedup:.2} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2} | {} | {} | {} | {} | {} | {} | {:.2} | {} | {} | {} | {:.0} % |",
             stats.nodes,
             stats.expected_trials,
             build_serial * 1e3,
@@ -393,6 +426,7 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
             opt(tgt_ns, 0),
             opt(tgt_ns.map(|t| t / ns(ana)), 2),
             opt(tgt_ns.map(|t| t / beckmann_ns), 2),
+            100.0 * worst,
         );
     }
     drop(bar);
@@ -422,16 +456,17 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
             "wi θ = 45°, φ = 30°; sky 0.2 + 0.8 cos θ plus a 2° sun at θ = 60°, φ = 120° (glint: \
 at θ = 40°, φ = 215°, 6° from the mirror direction); \
 {samples} samples per sampler; builds on 1 thread amortised over {AMORTISE:.0e} samples; \
-rayon speedup on {threads} threads; efficiency = 1/(variance × time per sample); \
+rayon speedup on {threads} threads; efficiency = 1/(variance × time per sample), \
+each ratio of efficiencies as uncertain as its two variance estimates (the last column: the row's largest relative standard error); \
 the Beckmann analytic sample (cook-torrance m = 0.1) takes {beckmann_ns:.0} ns (fastest of {timing_runs} runs).\n"
         )?;
         writeln!(
             stdout,
-            "| set | nodes | E[T] | B/node | build ms | rayon × | ns/sample quadtree | analytic | cosine | table | time quadtree/analytic | efficiency quadtree/cosine | /analytic | /table | target-1.25/analytic | glint: quadtree/cosine | glint: /analytic | time quadtree/Beckmann | ns/sample target-1.25 | time target/analytic | time target/Beckmann |"
+            "| set | nodes | E[T] | B/node | build ms | rayon × | ns/sample quadtree | analytic | cosine | table | time quadtree/analytic | efficiency quadtree/cosine | /analytic | /table | target-1.25/analytic | glint: quadtree/cosine | glint: /analytic | time quadtree/Beckmann | ns/sample target-1.25 | time target/analytic | time target/Beckmann | efficiency ± |"
         )?;
         writeln!(
             stdout,
-            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
         )?;
         write!(stdout, "{table}")?;
         writeln!(
@@ -439,15 +474,15 @@ the Beckmann analytic sample (cook-torrance m = 0.1) takes {beckmann_ns:.0} ns (
             "\nThe baked sampler (SPEC §7, default grid), sampled with a new random wi (cosine-distributed) per sample as a renderer calls it, \
 against the Beckmann analytic sample timed in the same loop over the same wi ({beckmann_random_ns:.0} ns before the first set, fastest of {timing_runs} runs; \
 each row's ratios divide by its own Beckmann time, the last column, from runs taken in turn with the row's: fastest of {timing_runs} each); \
-efficiencies at the benches' wi (off the grid), the bake not amortised (it is once per material).\n"
+efficiencies at the benches' wi (off the grid), the bake not amortised (it is once per material), and their largest relative standard error last.\n"
         )?;
         writeln!(
             stdout,
-            "| set | trees | nodes | bytes | bake s (rayon) | bake s (1 thread) | ns/sample rejection | /Beckmann | ns/sample warp | /Beckmann | pdf ns rejection | pdf ns warp | efficiency baked/analytic | baked/exact tree | warp/analytic | warp/exact tree | Beckmann ns |"
+            "| set | trees | nodes | bytes | bake s (rayon) | bake s (1 thread) | ns/sample rejection | /Beckmann | ns/sample warp | /Beckmann | pdf ns rejection | pdf ns warp | efficiency baked/analytic | baked/exact tree | warp/analytic | warp/exact tree | Beckmann ns | efficiency ± |"
         )?;
         writeln!(
             stdout,
-            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
         )?;
         write!(stdout, "{baked_table}")?;
         writeln!(
