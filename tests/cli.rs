@@ -744,6 +744,14 @@ fn bench_reports_ratios_from_unbiased_estimates() {
     }
     let o = brdf(&["bench", "--samples", "1"], "");
     assert_eq!(o.status.code(), Some(2));
+    // An absurd count is refused at once, not run for weeks.
+    let o = brdf(&["bench", "--samples", "1000000000000000"], "");
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("at most 4294967296"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
 }
 
 /// A bake whose trees a budget stops short of `--target-trials` says so: the count in its

@@ -110,6 +110,14 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
     if samples < 2 {
         return Err(CliError::Usage("--samples must be at least 2".into()));
     }
+    // Each set draws this many samples from each of its samplers (ten or so): a count past
+    // `brdf sample`'s own limit is a typo, not a week of benchmarking.
+    if samples > crate::sample::MAX_COUNT {
+        return Err(CliError::Usage(format!(
+            "--samples {samples}: at most {} per sampler and set",
+            crate::sample::MAX_COUNT
+        )));
+    }
     // A filter that selects nothing is a mistake, not an empty report.
     let selected = |label: &str| {
         (!args.quick || bench::QUICK_SETS.contains(&label))
