@@ -354,6 +354,32 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
         let speedup = build_serial / build_parallel;
         let tgt = get("quadtree-target-1.25");
         let tgt_ns = tgt.map(ns);
+        // Each efficiency ratio (numerator, denominator, environment: 0 the sky and sun, 1
+        // the glint), with its relative standard error beside it under the same key.
+        let (br, bw) = (get("baked-rejection"), get("baked-warp"));
+        let pairs: [(&str, Option<&Measured>, &Measured, usize); 10] = [
+            ("efficiency_quadtree_over_cosine", Some(qm), cos, 0),
+            ("efficiency_quadtree_over_analytic", Some(qm), ana, 0),
+            ("efficiency_quadtree_over_table", Some(qm), tab, 0),
+            ("efficiency_target_over_analytic", tgt, ana, 0),
+            ("glint_efficiency_quadtree_over_cosine", Some(qm), cos, 1),
+            ("glint_efficiency_quadtree_over_analytic", Some(qm), ana, 1),
+            ("efficiency_baked_over_analytic", br, ana, 0),
+            ("efficiency_baked_over_quadtree", br, qm, 0),
+            ("efficiency_baked_warp_over_analytic", bw, ana, 0),
+            ("efficiency_baked_warp_over_quadtree", bw, qm, 0),
+        ];
+        let mut ratios = json!({
+            "time_quadtree_over_analytic": ns(qm) / ns(ana),
+            "time_quadtree_over_beckmann": ns(qm) / beckmann_ns,
+            "time_target_over_analytic": tgt_ns.map(|t| t / ns(ana)),
+            "time_target_over_beckmann": tgt_ns.map(|t| t / beckmann_ns),
+        });
+        let mut ratios_rse = json!({});
+        for (key, a, b, env) in pairs {
+            ratios[key] = json!(a.map(|a| a.efficiency(env) / b.efficiency(env)));
+            ratios_rse[key] = json!(a.map(|a| a.ratio_rse(b, env)));
+        }
         bar.step();
         rows.push(json!({
             "set": label,
@@ -374,37 +400,11 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
                 "rejection": r.json(),
                 "warp": w.json(),
             })),
-            "ratios": {
-                "time_quadtree_over_analytic": ns(qm) / ns(ana),
-                "time_quadtree_over_beckmann": ns(qm) / beckmann_ns,
-                "time_target_over_analytic": tgt_ns.map(|t| t / ns(ana)),
-                "time_target_over_beckmann": tgt_ns.map(|t| t / beckmann_ns),
-                "efficiency_quadtree_over_cosine": eff(qm, cos),
-                "efficiency_quadtree_over_analytic": eff(qm, ana),
-                "efficiency_quadtree_over_table": eff(qm, tab),
-                "efficiency_target_over_analytic": tgt.map(|t| eff(t, ana)),
-                "glint_efficiency_quadtree_over_cosine": glint(qm, cos),
-                "glint_efficiency_quadtree_over_analytic": glint(qm, ana),
-                "efficiency_baked_over_analytic": get("baked-rejection").map(|m| eff(m, ana)),
-                "efficiency_baked_over_quadtree": get("baked-rejection").map(|m| eff(m, qm)),
-                "efficiency_baked_warp_over_analytic": get("baked-warp").map(|m| eff(m, ana)),
-                "efficiency_baked_warp_over_quadtree": get("baked-warp").map(|m| eff(m, qm)),
-            },
+            "ratios": ratios,
             // The relative standard error of each efficiency ratio above (its two variance
             // estimates' relative errors in quadrature): how far the ratio may move with
             // another sample stream.
-            "ratios_rse": {
-                "efficiency_quadtree_over_cosine": rse(qm, cos),
-                "efficiency_quadtree_over_analytic": rse(qm, ana),
-                "efficiency_quadtree_over_table": rse(qm, tab),
-                "efficiency_target_over_analytic": tgt.map(|t| rse(t, ana)),
-                "glint_efficiency_quadtree_over_cosine": glint_rse(qm, cos),
-                "glint_efficiency_quadtree_over_analytic": glint_rse(qm, ana),
-                "efficiency_baked_over_analytic": get("baked-rejection").map(|m| rse(m, ana)),
-                "efficiency_baked_over_quadtree": get("baked-rejection").map(|m| rse(m, qm)),
-                "efficiency_baked_warp_over_analytic": get("baked-warp").map(|m| rse(m, ana)),
-                "efficiency_baked_warp_over_quadtree": get("baked-warp").map(|m| rse(m, qm)),
-            },
+            "ratios_rse": ratios_rse,
         }));
         let worst = [(qm, cos), (qm, ana), (qm, tab)]
             .iter()
