@@ -236,12 +236,7 @@ pub fn estimate(
         if let Some(s) = sampler.sample(&mut rng) {
             let w = f64::from(crate::geometry::luminance(s.weight));
             for (acc, env) in sums.iter_mut().zip(envs) {
-                let y = w * env.radiance(s.wo);
-                let y2 = y * y;
-                acc[0] += y;
-                acc[1] += y2;
-                acc[2] += y2 * y;
-                acc[3] += y2 * y2;
+                add_powers(acc, w * env.radiance(s.wo));
             }
         }
     }
@@ -259,6 +254,16 @@ pub fn estimate(
             }
         })
         .collect()
+}
+
+/// Adds y, y², y³ and y⁴ to the power sums `acc`.
+#[inline]
+fn add_powers(acc: &mut [f64; 4], y: f64) {
+    let y2 = y * y;
+    acc[0] += y;
+    acc[1] += y2;
+    acc[2] += y2 * y;
+    acc[3] += y2 * y2;
 }
 
 /// (mean, unbiased variance, the variance's standard error) of `n` values from their power
@@ -463,10 +468,7 @@ mod tests {
             let n = ys.len() as f64;
             let mut sums = [0.0; 4];
             for &y in ys {
-                sums[0] += y;
-                sums[1] += y * y;
-                sums[2] += y * y * y;
-                sums[3] += y * y * y * y;
+                add_powers(&mut sums, y);
             }
             let (mean, variance, se) = moments(sums, n);
             let m = ys.iter().sum::<f64>() / n;
@@ -494,11 +496,7 @@ mod tests {
             let mut sums = [0.0; 4];
             for _ in 0..n {
                 let u = (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
-                let y = -(1.0 - u).ln();
-                sums[0] += y;
-                sums[1] += y * y;
-                sums[2] += y * y * y;
-                sums[3] += y * y * y * y;
+                add_powers(&mut sums, -(1.0 - u).ln());
             }
             let (_, variance, se) = moments(sums, n as f64);
             variances.push(variance);

@@ -95,8 +95,9 @@ static BLEND: Nearest = Nearest {
 };
 
 /// A query's mixture components, on the stack: at most two neighbours along θi, three on a
-/// cell's triangle in (θi, φi), or the last row's up to two trees twice beyond it. (Not an array of placeholders: four
-/// of those, 168 bytes each, were copied in on every sample and pdf.)
+/// cell's triangle in (θi, φi), or the last row's up to two trees twice beyond it. (Not an
+/// array of placeholders: four of those, 168 bytes each, were copied in on every sample and
+/// pdf.)
 pub(crate) type Components = arrayvec::ArrayVec<Component, 4>;
 
 /// One neighbour of a query: its tree, weight, and the map from its tree's frame to the

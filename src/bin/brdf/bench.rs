@@ -290,18 +290,40 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
             );
         }
         let get = |n: &str| measured.iter().find(|m| m.name == n);
-        {
-            let (br, bw, qm, ana) = (
-                get("baked-rejection").expect("measured"),
-                get("baked-warp").expect("measured"),
-                get("quadtree").expect("measured"),
-                get("analytic").expect("measured"),
-            );
-            let e = |a: &Measured, b: &Measured| a.efficiency(0) / b.efficiency(0);
-            let worst = [(br, ana), (br, qm), (bw, ana), (bw, qm)]
+        let (qm, cos, ana, tab, br, bw) = (
+            get("quadtree").expect("measured"),
+            get("cosine").expect("measured"),
+            get("analytic").expect("measured"),
+            get("table").expect("measured"),
+            get("baked-rejection").expect("measured"),
+            get("baked-warp").expect("measured"),
+        );
+        let tgt = get("quadtree-target-1.25");
+        // Each efficiency ratio (numerator, denominator, environment: 0 the sky and sun, 1
+        // the glint): its value and its relative standard error go under the same key.
+        let pairs: [(&str, Option<&Measured>, &Measured, usize); 10] = [
+            ("efficiency_quadtree_over_cosine", Some(qm), cos, 0),
+            ("efficiency_quadtree_over_analytic", Some(qm), ana, 0),
+            ("efficiency_quadtree_over_table", Some(qm), tab, 0),
+            ("efficiency_target_over_analytic", tgt, ana, 0),
+            ("glint_efficiency_quadtree_over_cosine", Some(qm), cos, 1),
+            ("glint_efficiency_quadtree_over_analytic", Some(qm), ana, 1),
+            ("efficiency_baked_over_analytic", Some(br), ana, 0),
+            ("efficiency_baked_over_quadtree", Some(br), qm, 0),
+            ("efficiency_baked_warp_over_analytic", Some(bw), ana, 0),
+            ("efficiency_baked_warp_over_quadtree", Some(bw), qm, 0),
+        ];
+        // A table row's largest relative standard error: the baked table's ratios, or the
+        // per-wi table's.
+        let worst = |baked: bool| {
+            pairs
                 .iter()
-                .map(|(a, b)| a.ratio_rse(b, 0))
-                .fold(0.0, f64::max);
+                .filter(|p| p.0.contains("baked") == baked)
+                .filter_map(|&(_, a, b, env)| a.map(|a| a.ratio_rse(b, env)))
+                .fold(0.0, f64::max)
+        };
+        {
+            let e = |a: &Measured, b: &Measured| a.efficiency(0) / b.efficiency(0);
             use std::fmt::Write as _;
             let _ = writeln!(
                 baked_table,
@@ -322,7 +344,7 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
                 ratio(e(bw, ana)),
                 ratio(e(bw, qm)),
                 random.beckmann_ns,
-                100.0 * worst,
+                100.0 * worst(true),
             );
         }
         let baked_json = json!({
@@ -339,36 +361,12 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
             "time_baked_rejection_over_beckmann": random.rejection_ns / random.beckmann_ns,
             "time_baked_warp_over_beckmann": random.warp_ns / random.beckmann_ns,
         });
-        let (qm, cos, ana, tab) = (
-            get("quadtree").expect("measured"),
-            get("cosine").expect("measured"),
-            get("analytic").expect("measured"),
-            get("table").expect("measured"),
-        );
         let ns = Measured::ns;
         let eff = |a: &Measured, b: &Measured| a.efficiency(0) / b.efficiency(0);
         let glint = |a: &Measured, b: &Measured| a.efficiency(1) / b.efficiency(1);
-        let rse = |a: &Measured, b: &Measured| a.ratio_rse(b, 0);
-        let glint_rse = |a: &Measured, b: &Measured| a.ratio_rse(b, 1);
         let bytes_per_node = stats.bytes as f64 / stats.nodes.max(1) as f64;
         let speedup = build_serial / build_parallel;
-        let tgt = get("quadtree-target-1.25");
         let tgt_ns = tgt.map(ns);
-        // Each efficiency ratio (numerator, denominator, environment: 0 the sky and sun, 1
-        // the glint), with its relative standard error beside it under the same key.
-        let (br, bw) = (get("baked-rejection"), get("baked-warp"));
-        let pairs: [(&str, Option<&Measured>, &Measured, usize); 10] = [
-            ("efficiency_quadtree_over_cosine", Some(qm), cos, 0),
-            ("efficiency_quadtree_over_analytic", Some(qm), ana, 0),
-            ("efficiency_quadtree_over_table", Some(qm), tab, 0),
-            ("efficiency_target_over_analytic", tgt, ana, 0),
-            ("glint_efficiency_quadtree_over_cosine", Some(qm), cos, 1),
-            ("glint_efficiency_quadtree_over_analytic", Some(qm), ana, 1),
-            ("efficiency_baked_over_analytic", br, ana, 0),
-            ("efficiency_baked_over_quadtree", br, qm, 0),
-            ("efficiency_baked_warp_over_analytic", bw, ana, 0),
-            ("efficiency_baked_warp_over_quadtree", bw, qm, 0),
-        ];
         let mut ratios = json!({
             "time_quadtree_over_analytic": ns(qm) / ns(ana),
             "time_quadtree_over_beckmann": ns(qm) / beckmann_ns,
@@ -406,11 +404,6 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
             // another sample stream.
             "ratios_rse": ratios_rse,
         }));
-        let worst = [(qm, cos), (qm, ana), (qm, tab)]
-            .iter()
-            .map(|&(a, b)| rse(a, b).max(glint_rse(a, b)))
-            .chain(tgt.map(|t| rse(t, ana)))
-            .fold(0.0, f64::max);
         let opt = |v: Option<f64>, p: usize| v.map_or_else(|| "–".into(), |v| format!("{v:.p$}"));
         use std::fmt::Write as _;
         let _ = writeln!(
@@ -434,7 +427,7 @@ pub(crate) fn run(args: &BenchArgs, mut stdout: impl Write) -> Result<(), CliErr
             opt(tgt_ns, 0),
             opt(tgt_ns.map(|t| t / ns(ana)), 2),
             opt(tgt_ns.map(|t| t / beckmann_ns), 2),
-            100.0 * worst,
+            100.0 * worst(false),
         );
     }
     drop(bar);
