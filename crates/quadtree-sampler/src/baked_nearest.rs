@@ -12,7 +12,11 @@
 //! on that axis, in both directions:
 //!
 //! - the χ² distance ∫ T_b²/q_a − 1, the excess of the weight's variance under uniform light
-//!   (at most [`NEAREST_REJECTION_EXCESS`]);
+//!   (at most [`NEAREST_REJECTION_EXCESS`]), including the band along the horizon that a's
+//!   tilted directions cannot reach, where q_a is the defensive share alone (integrated on
+//!   its own: the stratified points below never come within 6° of the horizon, and a tail
+//!   that reaches it, Schlick r = 0.01, snapped cells whose samples there weighed 10⁶ times
+//!   their due);
 //! - the largest ratio T_b/q_a where T_b is at least 10⁻⁶ of its peak (at most
 //!   [`NEAREST_MAX_RATIO`]): under a small bright source (a sun) the variance is the
 //!   source's share times that ratio at the source, so a neighbour whose lobe tails differ
@@ -45,6 +49,7 @@ use crate::baked::Slice;
 use crate::baked_mixture::HalfMap;
 use alloc::vec::Vec;
 use brdf_core::geometry::luminance;
+use brdf_core::math as m;
 use core::f64::consts::FRAC_1_PI;
 use glam::{DMat3, DVec2, DVec3, Vec3};
 
@@ -126,21 +131,33 @@ fn agreement(
     for (w, own) in warp_points(target, n).chain(cosine) {
         let mixture = 0.5 * (own + w.z * FRAC_1_PI);
         let t = density(target, w);
-        let r = match from_target(w) {
-            Some((v, jacobian)) if v.z > 0.0 => density(other, v) * jacobian,
-            _ => 0.0,
+        let (reached, r) = match from_target(w) {
+            Some((v, jacobian)) if v.z > 0.0 => (true, density(other, v) * jacobian),
+            _ => (false, 0.0),
         };
         let q = defensive * w.z * FRAC_1_PI + keep * r;
-        chi += (t - q) * (t - q) / (q * mixture);
+        // The band `other` cannot reach is integrated below (these points rarely see it).
+        if reached {
+            chi += (t - q) * (t - q) / (q * mixture);
+        }
         seen.push((t, t / q));
     }
+    // The target's density in the band above the horizon that `other`'s directions cannot
+    // reach (see `unreached_excess`).
+    let reach = m::acos(target.mirror.dot(other.mirror).clamp(-1.0, 1.0));
+    let unreached = unreached_excess(
+        reach,
+        |w| matches!(from_target(w), Some((v, _)) if v.z > 0.0),
+        |w| density(target, w),
+        defensive,
+    );
     // The other tree's mass its map carries below the horizon.
     let lost: f64 = warp_points(other, n)
         .filter(|&(w, _)| onto_target(w).is_none_or(|v| v.z <= 0.0))
         .map(|(w, own)| density(other, w) / own)
         .sum();
     let count = (n * n) as f64;
-    let chi = chi / (2.0 * count) + keep * lost / count;
+    let chi = chi / (2.0 * count) + keep * lost / count + unreached;
     let peak = seen.iter().map(|x| x.0).fold(0.0, f64::max);
     let ratio = seen
         .iter()
@@ -150,6 +167,57 @@ fn agreement(
     // NaN (a model returning one) counts as disagreement.
     let finite = |e: f64| if e.is_nan() { f64::INFINITY } else { e };
     (finite(chi), finite(ratio))
+}
+
+/// Columns in φ and rows in elevation of [`unreached_excess`]'s midpoint rule.
+const BAND_COLUMNS: usize = 128;
+const BAND_ROWS: usize = 8;
+
+/// ∫ T²/q over the directions above the horizon that the other tree cannot reach, where q
+/// is the defensive share δ·cos θ/π alone: (π/δ)·∫ T²/cos θ dω. A tree carried onto its
+/// neighbour (rotated by the angle `reach` between their mirror directions, or by the
+/// half-vector transport, which moves no direction by more than the angle between their
+/// incident directions, the same angle) leaves a band along the horizon, at most `reach`
+/// high, that its directions do not reach. Blended, the neighbour on the other side covers
+/// it; snapped, nothing but δ does, and where f·cos θ is not negligible there (a tail
+/// that reaches the horizon: Schlick r = 0.001 at θi ≈ 10°), a sample in the band weighs
+/// 1/δ = 10⁶ times its due: R = 58–173 at the snapped queries of that material's default
+/// grid, which the stratified points above, none within 6° of the horizon, did not see.
+/// A midpoint rule over the band's elevations e ∈ (0, reach] and all φ, the model
+/// evaluated only where `reached` says no.
+fn unreached_excess(
+    reach: f64,
+    reached: impl Fn(DVec3) -> bool,
+    target: impl Fn(DVec3) -> f64,
+    defensive: f64,
+) -> f64 {
+    if reach.is_nan() || reach <= 0.0 {
+        return 0.0;
+    }
+    let (de, dphi) = (
+        reach / BAND_ROWS as f64,
+        core::f64::consts::TAU / BAND_COLUMNS as f64,
+    );
+    let mut sum = 0.0;
+    for i in 0..BAND_ROWS {
+        let (se, ce) = m::sin_cos(de * (i as f64 + 0.5));
+        for j in 0..BAND_COLUMNS {
+            let (sp, cp) = m::sin_cos(dphi * (j as f64 + 0.5));
+            let w = DVec3::new(ce * cp, ce * sp, se);
+            if reached(w) {
+                continue;
+            }
+            let t = target(w);
+            // dω = cos e de dφ; cos θ = sin e.
+            sum += t * t / se * ce;
+        }
+    }
+    let excess = core::f64::consts::PI / defensive * sum * de * dphi;
+    if excess.is_nan() {
+        f64::INFINITY
+    } else {
+        excess
+    }
 }
 
 /// The directions of `n` × `n` stratified points (cell centres of [0, 1)²) through a tree's
@@ -310,11 +378,46 @@ mod tests {
                 }
             }
             let brute = sum - 1.0;
-            std::eprintln!("ZZ {a} {b} measured {measured} brute {brute}");
             assert!(
                 (measured - brute).abs() <= tolerance * brute,
                 "trees {a}, {b}: measured {measured}, quadrature {brute}"
             );
+        }
+    }
+
+    /// A tail that reaches the horizon keeps its cells blended: Schlick r = 0.01 snapped
+    /// ten of its default grid's cells, and a snapped query's one tree, tilted onto wi's
+    /// mirror, left a band along the horizon with f·cos θ in it that only the defensive
+    /// share covered: a direction there drawn by the exact per-wi tree had 10⁶ times the
+    /// mixture's density (a firefly: the weight's R was 32–58 at snapped wi, though the
+    /// bake's coverage check, 2 048 samples a cell, saw none). Now no cell snaps, and at
+    /// mid-cell wi no direction the exact tree draws has over 10 times the mixture's
+    /// density.
+    #[test]
+    fn a_tail_on_the_horizon_keeps_its_cells_blended() {
+        use rand_core::SeedableRng;
+        let baked = bake("schlick", &["r=0.01"], 16, 1).with_mode(BakedMode::Rejection);
+        assert_eq!(baked.nearest_cells(BakedMode::Rejection), (0, 15));
+        let step = crate::GRID_THETA_MAX_DEG / 15.0;
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        for cell in [0.5, 1.6, 3.5, 6.4] {
+            let t = (cell * step).to_radians();
+            let wi = glam::DVec3::new(t.sin(), 0.0, t.cos()).as_vec3();
+            let exact = crate::QuadtreeSampler::new(
+                baked.brdf().clone(),
+                wi,
+                crate::BuildConfig::default(),
+            )
+            .unwrap();
+            let mut worst = 0.0f64;
+            for _ in 0..40_000 {
+                let Some(s) = exact.sample(&mut rng) else {
+                    continue;
+                };
+                let mixture = baked.pdf(wi, s.wo).unwrap();
+                worst = worst.max(f64::from(s.pdf) / f64::from(mixture));
+            }
+            assert!(worst < 10.0, "θi = {:.2}°: ratio {worst:e}", cell * step);
         }
     }
 

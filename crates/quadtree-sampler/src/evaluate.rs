@@ -80,7 +80,8 @@ fn sampled_volume<B: Brdf + ?Sized>(brdf: &B, wi: Vec3, map: DiskMap) -> f64 {
             (j as f32 + 0.5) / side as f32,
         );
         // The lobe choice runs through its own strata, in an order unrelated to u's.
-        let uc = ((f64::from(k) + 0.5) * 0.618_033_988_749_894_9).fract() as f32;
+        let x = (f64::from(k) + 0.5) * 0.618_033_988_749_894_9;
+        let uc = (x - (x as u64) as f64) as f32;
         let Some(s) = brdf.sample_continuous(wi, uc, u) else {
             continue;
         };
