@@ -52,9 +52,15 @@ pub const BAKE_MAGIC: [u8; 8] = *b"BRDFBAKE";
 /// onto a query's mirror direction — each as it did when it was written. Version 9:
 /// version 8's record, whose warps (orthographic trees) spread the share of a leaf on the
 /// disk's rim uniformly in solid angle over its part of the hemisphere,
-/// its shape fitted in that chart; up to 8 such a leaf spreads over its square. A file of
-/// any other version is a typed error (SPEC §7): bake it again.
-pub const BAKE_FORMAT_VERSION: u32 = 9;
+/// its shape fitted in that chart; up to 8 such a leaf spreads over its square. Version 10:
+/// version 9's record, whose nearest-tree cells were measured with the band along the
+/// horizon that a tilted tree cannot reach (`baked_nearest::unreached_excess`); files of
+/// versions 6 to 9 read with their nearest-tree cells dropped, so that every cell blends
+/// (exact, and no band is left to the defensive share alone: a snapped Schlick r = 0.01
+/// cell's samples there weighed 10⁶ times their due; rejection mode costs one evaluation
+/// more per query where they snapped). A file of any other version is a typed error
+/// (SPEC §7): bake it again.
+pub const BAKE_FORMAT_VERSION: u32 = 10;
 
 /// The oldest format version read: version 5, whose records are version 6's without the
 /// nearest-tree cells (and version 6's are version 7's without the warp's shapes).
@@ -604,11 +610,18 @@ impl BakedSampler {
         // Version 9 is version 8's record, whose warps spread their rim leaves in solid
         // angle; older files' rim leaves spread over their squares, as they did.
         let rim_charts = version >= 9;
-        let forward = tables_from(record.forward, &grid, map, 0, rim_charts)?;
-        let adjoint = record
+        let mut forward = tables_from(record.forward, &grid, map, 0, rim_charts)?;
+        let mut adjoint = record
             .adjoint
             .map(|a| tables_from(a, &grid, map, grid.len(), rim_charts))
             .transpose()?;
+        // Nearest-tree cells measured before version 10 did not see the horizon band: they
+        // are dropped, and every cell blends (exact; only slower where they snapped).
+        if version < 10 {
+            for t in core::iter::once(&mut forward).chain(adjoint.as_mut()) {
+                t.nearest = Default::default();
+            }
+        }
         // Version 8 is version 7's record, sampled by the half-vector transport where the
         // grid is anisotropic; older files sample as they did (rotations).
         let half_vector = version >= 8 && !brdf.symmetry().isotropic;
@@ -884,7 +897,8 @@ mod tests {
     }
 
     /// A version 6 file (no warp shapes, as this library wrote them before) still reads:
-    /// the same trees, nearest-tree cells and rejection sampler, every warp leaf flat; and
+    /// the same trees, every warp leaf flat, its nearest-tree cells dropped (measured
+    /// before version 10's horizon band, see [`BAKE_FORMAT_VERSION`]); and
     /// the shapes this bake fitted change the warp's pdf (else they were not stored).
     #[test]
     fn a_version_6_file_reads_with_flat_warps() {
@@ -907,7 +921,8 @@ mod tests {
         };
         let v6 = frame(6, &postcard::to_allocvec(&record).unwrap());
         let old = BakedSampler::from_bytes(&v6).unwrap();
-        assert_eq!(old.forward, flat_warps(&baked).forward);
+        assert_eq!(old.forward.slices, flat_warps(&baked).forward.slices);
+        assert!(old.forward.nearest.theta.is_empty());
         let back = BakedSampler::from_bytes(&baked.to_bytes()).unwrap();
         assert_eq!(back.forward, baked.forward);
         let wi = glam::Vec3::new(0.45, 0.1, 0.8).normalize();
@@ -1001,6 +1016,33 @@ mod tests {
         assert_eq!(old.mixture_at(role, wi), blended.mixture_at(role, wi));
         assert_eq!(baked.mixture_at(role, wi).unwrap().len(), 1);
         for k in 0..200 {
+            let a = f32::from(k as u8) * 0.031;
+            let wo = glam::Vec3::new(-0.4 + 0.1 * a.cos(), -0.1 + 0.1 * a.sin(), 0.9).normalize();
+            assert_eq!(
+                old.pdf(wi, wo).unwrap().to_bits(),
+                blended.pdf(wi, wo).unwrap().to_bits()
+            );
+        }
+    }
+
+    /// A version 9 file's nearest-tree cells, measured without the horizon band, are
+    /// dropped: it reads as this bake with every cell blending, bit for bit in its pdf; the
+    /// same record as version 10 keeps them.
+    #[test]
+    fn a_version_9_file_drops_its_nearest_tree_cells() {
+        let baked = phong_bake(&["n=1000", "kd=0"], 8);
+        assert!(baked.nearest_cells(crate::BakedMode::Rejection).0 > 0);
+        let bytes = baked.to_bytes();
+        let payload = &bytes[HEADER..bytes.len() - TRAILER];
+        let old = BakedSampler::from_bytes(&frame(9, payload)).unwrap();
+        assert!(old.forward.nearest.theta.is_empty());
+        let kept = BakedSampler::from_bytes(&frame(10, payload)).unwrap();
+        assert_eq!(kept.forward, baked.forward);
+        let mut blended = BakedSampler::from_bytes(&bytes).unwrap();
+        blended.blend_everywhere_for_testing();
+        assert_eq!(old.forward, blended.forward);
+        let wi = glam::Vec3::new(0.45, 0.1, 0.8).normalize();
+        for k in 0..100 {
             let a = f32::from(k as u8) * 0.031;
             let wo = glam::Vec3::new(-0.4 + 0.1 * a.cos(), -0.1 + 0.1 * a.sin(), 0.9).normalize();
             assert_eq!(

@@ -557,7 +557,7 @@ fn damaged_bake_files_are_typed_errors() {
         );
     }
     // Another version, a foreign file, random bytes.
-    for other in [1u8, 2, 3, 4, 10] {
+    for other in [1u8, 2, 3, 4, 11] {
         let mut v = bytes.clone();
         v[8] = other;
         assert!(matches!(
