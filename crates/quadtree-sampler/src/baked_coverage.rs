@@ -36,6 +36,7 @@
 
 use crate::bake_grid::PhiDomain;
 use crate::baked::{Adjoint, BakedMode, BakedSampler, GRID_THETA_MAX_DEG, Role};
+use crate::baked_nearest::band_directions;
 use crate::config::BuildConfig;
 use crate::sampler::{QuadtreeSampler, uniform_f64};
 use alloc::vec::Vec;
@@ -365,32 +366,28 @@ impl BakedSampler {
         given: glam::Vec3,
         top: f64,
     ) -> [f64; 2] {
-        let dphi = core::f64::consts::TAU / BAND_COLUMNS as f64;
-        let mut sums = [0.0; 2];
-        for i in 0..BAND_ROWS {
-            // e = top·x², x at the row's midpoint: de = 2·top·x dx.
+        // e = top·x², x at the row's midpoint: de = 2·top·x dx.
+        let rows = (0..BAND_ROWS).map(|i| {
             let x = (i as f64 + 0.5) / BAND_ROWS as f64;
-            let (e, de) = (top * x * x, 2.0 * top * x / BAND_ROWS as f64);
-            let (se, ce) = m::sin_cos(e);
-            for j in 0..BAND_COLUMNS {
-                let (sp, cp) = m::sin_cos(dphi * (j as f64 + 0.5));
-                let w = DVec3::new(ce * cp, ce * sp, se).as_vec3();
-                let t = f64::from(tree.pdf(w));
-                if t.is_nan() || t <= 0.0 {
-                    continue;
-                }
-                for (k, mode) in [BakedMode::Rejection, BakedMode::Warp]
-                    .into_iter()
-                    .enumerate()
-                {
-                    let q = f64::from(self.pdf_unit_in(mode, role, given, w));
-                    // dω = cos e de dφ.
-                    sums[k] += if q > 0.0 {
-                        t * t / q * ce * de * dphi
-                    } else {
-                        f64::INFINITY
-                    };
-                }
+            (top * x * x, 2.0 * top * x / BAND_ROWS as f64)
+        });
+        let mut sums = [0.0; 2];
+        for (w, dw) in band_directions(rows, BAND_COLUMNS) {
+            let w = w.as_vec3();
+            let t = f64::from(tree.pdf(w));
+            if t.is_nan() || t <= 0.0 {
+                continue;
+            }
+            for (k, mode) in [BakedMode::Rejection, BakedMode::Warp]
+                .into_iter()
+                .enumerate()
+            {
+                let q = f64::from(self.pdf_unit_in(mode, role, given, w));
+                sums[k] += if q > 0.0 {
+                    t * t / q * dw
+                } else {
+                    f64::INFINITY
+                };
             }
         }
         sums

@@ -194,30 +194,41 @@ fn unreached_excess(
     if reach.is_nan() || reach <= 0.0 {
         return 0.0;
     }
-    let (de, dphi) = (
-        reach / BAND_ROWS as f64,
-        core::f64::consts::TAU / BAND_COLUMNS as f64,
-    );
+    let de = reach / BAND_ROWS as f64;
+    let rows = (0..BAND_ROWS).map(|i| (de * (i as f64 + 0.5), de));
     let mut sum = 0.0;
-    for i in 0..BAND_ROWS {
-        let (se, ce) = m::sin_cos(de * (i as f64 + 0.5));
-        for j in 0..BAND_COLUMNS {
-            let (sp, cp) = m::sin_cos(dphi * (j as f64 + 0.5));
-            let w = DVec3::new(ce * cp, ce * sp, se);
-            if reached(w) {
-                continue;
-            }
-            let t = target(w);
-            // dω = cos e de dφ; cos θ = sin e.
-            sum += t * t / se * ce;
+    for (w, dw) in band_directions(rows, BAND_COLUMNS) {
+        if reached(w) {
+            continue;
         }
+        let t = target(w);
+        // cos θ = w.z.
+        sum += t * t / w.z * dw;
     }
-    let excess = core::f64::consts::PI / defensive * sum * de * dphi;
+    let excess = core::f64::consts::PI / defensive * sum;
     if excess.is_nan() {
         f64::INFINITY
     } else {
         excess
     }
+}
+
+/// The midpoints of a rule over a band along the horizon: for each row (its elevation e
+/// above the horizon and its width de, radians) and each of `columns` equal steps of φ, the
+/// direction and the solid angle it stands for, cos e·de·dφ. What the snap measure's
+/// unreached band and the coverage check's horizon band (`baked_coverage`) integrate over.
+pub(crate) fn band_directions(
+    rows: impl IntoIterator<Item = (f64, f64)>,
+    columns: usize,
+) -> impl Iterator<Item = (DVec3, f64)> {
+    let dphi = core::f64::consts::TAU / columns as f64;
+    rows.into_iter().flat_map(move |(e, de)| {
+        let (se, ce) = m::sin_cos(e);
+        (0..columns).map(move |j| {
+            let (sp, cp) = m::sin_cos(dphi * (j as f64 + 0.5));
+            (DVec3::new(ce * cp, ce * sp, se), ce * de * dphi)
+        })
+    })
 }
 
 /// The directions of `n` × `n` stratified points (cell centres of [0, 1)²) through a tree's

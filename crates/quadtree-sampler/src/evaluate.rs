@@ -91,11 +91,7 @@ fn sampled_volume<B: Brdf + ?Sized>(brdf: &B, wi: Vec3, map: DiskMap) -> f64 {
             sum += term;
         }
     }
-    let projected = sum / f64::from(SAMPLED_POINTS);
-    match map {
-        DiskMap::Orthographic => projected,
-        DiskMap::Concentric => projected * 4.0 / core::f64::consts::PI,
-    }
+    sum / f64::from(SAMPLED_POINTS) * f64::from(map.square_area_per_projected_solid_angle())
 }
 
 /// Integration cells the build may remember for the nodes still to split (88 bytes each:
