@@ -35,7 +35,8 @@ pub struct Settings {
     /// The family-wise significance of the whole run; each test is judged at Šidák's
     /// 1 − (1 − α)^(1/k) for k tests.
     pub alpha: f64,
-    /// The relative tolerance of the expected cell masses (per cell, relative to the total).
+    /// The relative tolerance of the expected cell masses (per cell, relative to the total;
+    /// see [`crate::Validation::new`]: below the rounding of f32 values it costs no more).
     pub tol: f64,
     /// What the verdict judges.
     pub against: Against,

@@ -90,7 +90,10 @@ fn coarse_total(g: &(dyn Fn(Vec3) -> f64 + Sync), hints: &Hints, tol: f64) -> f6
 impl Validation {
     /// Integrates the luminance of f_r(wi, ·) over every cell. `tol` is the absolute error
     /// allowed per cell **relative to the total** (1e-7: for 10⁶ samples, 0.1 expected sample
-    /// per cell at worst). `wi` must be above the horizon; the model must have a continuous
+    /// per cell at worst; 10⁸ samples on 100 × 100 cells pass at it too). No part of a cell is
+    /// refined below the rounding of the f32 values integrated (an error estimate within
+    /// 4·2⁻²⁴ of the part's own integral), so a smaller `tol` costs about what that rounding
+    /// allows and no more. `wi` must be above the horizon; the model must have a continuous
     /// part.
     pub fn new<B: Brdf + ?Sized>(
         brdf: &B,
