@@ -5,7 +5,9 @@
 /// The error estimate, relative to ∫|f| over a piece, below which [`adaptive`] does not halve
 /// the piece: 4·2⁻²⁴, four times the rounding of an f32 value. The integrands are models' f32
 /// values (and f32 pdfs), so a piece's Gauss–Kronrod difference cannot fall much below this
-/// however far it is halved (pure rounding gives about a tenth of it); a tolerance under it
+/// however far it is halved (pure rounding gives at most an eighth of it: over 50 000 pieces
+/// of a smooth f rounded to f32, widths 10⁻⁷ to 10⁻², at most 0.50·2⁻²⁴ of ∫|f|, median
+/// 0.08·2⁻²⁴); a tolerance under it
 /// only spent evaluations chasing rounding: every piece of every cell refined to the
 /// limit, nested (`brdf test --tol 1e-10` on htsg had not finished after 600 s; `--tol
 /// 1e-9` with `--cells 2`, 144 s, against 1.6 s at the default 10⁻⁷).
@@ -109,7 +111,9 @@ fn hidden_jump(end: f64, node: f64, width: f64) -> f64 {
 
 /// Globally adaptive [`gk15`] (QUADPACK's QAG strategy): keep bisecting the interval with the
 /// largest error estimate until the estimates sum to at most `tol`, or `limit` intervals
-/// exist. Unlike halving the tolerance per level, this spends evaluations only where the
+/// exist; an interval whose estimate is within the rounding of f's values ([`NOISE`]) is
+/// set aside instead (still counted and summed), and the loop also ends when none but
+/// those is left. Unlike halving the tolerance per level, this spends evaluations only where the
 /// error is: a kink or a jump costs one chain of bisections, not a full-depth tree, and the
 /// limit bounds the work on integrands that never meet the tolerance. A half's estimate
 /// also counts a jump of f between its outermost node and an end where a bisection has
