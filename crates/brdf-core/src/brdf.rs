@@ -231,6 +231,17 @@ pub trait Brdf: Send + Sync + fmt::Debug {
         Symmetry::NONE
     }
 
+    /// True when f_r(wi, wo) does not depend on wi at all: f_r(wi, wo) = f_r(wi', wo) for
+    /// every wi, wi' and wo above the horizon (Lambert, or a glossy model with its glossy
+    /// part switched off), and there is no delta part (a mirror lobe follows wi). A baked
+    /// sampler then answers every incident direction with one of its trees, as it is: no
+    /// neighbour mixture, no rotation, and the sampling quality of a tree built at that very
+    /// wi. A promise about every pair, like [`Brdf::symmetry`] (a test checks every model's
+    /// by evaluation); false, the default, is always safe.
+    fn independent_of_incident(&self) -> bool {
+        false
+    }
+
     /// Directions where f_r(wi, ·) may peak, used to bound f_r over a region (SPEC §3).
     fn peak_hints(&self, wi: Vec3) -> PeakHints {
         PeakHints::mirror_and_normal(wi)
@@ -414,6 +425,10 @@ macro_rules! forward_brdf {
             #[inline]
             fn symmetry(&self) -> Symmetry {
                 (**self).symmetry()
+            }
+            #[inline]
+            fn independent_of_incident(&self) -> bool {
+                (**self).independent_of_incident()
             }
             #[inline]
             fn peak_hints(&self, wi: Vec3) -> PeakHints {

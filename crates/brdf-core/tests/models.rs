@@ -992,6 +992,12 @@ mod symmetry {
             if s.reciprocal && !same(f, b.eval(wo, wi)) {
                 return Some("reciprocal");
             }
+            if b.independent_of_incident() {
+                let other = any(&mut rng);
+                if !same(f, b.eval(other, wo)) || b.delta_reflectance(wi) != Vec3::ZERO {
+                    return Some("independent_of_incident");
+                }
+            }
         }
         None
     }
@@ -1011,6 +1017,11 @@ mod symmetry {
             ("strauss", vec!["smoothness=0.9", "metalness=1"]),
             ("cook-torrance", vec!["m=0.1"]),
             ("phong", vec!["n=1000"]),
+            // Glossy parts switched off: independent of wi (and so declared).
+            ("phong", vec!["ks=0", "n=1000"]),
+            ("blinn-phong", vec!["ks=0"]),
+            ("lewis-phong", vec!["ks=0", "kd=0.9"]),
+            ("oren-nayar", vec!["sigma=0"]),
         ]);
         v
     }
@@ -1080,6 +1091,54 @@ mod symmetry {
         }
         let tilted = Swapped(build("ward", &["alpha_x=0.05", "alpha_y=0.3"]));
         assert_eq!(refuted(&tilted, 3), Some("mirror_x"));
+        // Independence of wi, claimed by a model that has it nearly (a faint, broad lobe
+        // over a diffuse base) and by one whose dependence is a delta lobe alone.
+        #[derive(Debug)]
+        struct Independent(Box<dyn Brdf>);
+        impl Brdf for Independent {
+            fn name(&self) -> &'static str {
+                self.0.name()
+            }
+            fn params(&self) -> brdf_core::ParamSet {
+                self.0.params()
+            }
+            fn eval(&self, wi: Vec3, wo: Vec3) -> Vec3 {
+                self.0.eval(wi, wo)
+            }
+            fn delta_reflectance(&self, wi: Vec3) -> Vec3 {
+                self.0.delta_reflectance(wi)
+            }
+            fn independent_of_incident(&self) -> bool {
+                true
+            }
+        }
+        let faint = Independent(build("phong", &["ks=0.01", "n=2"]));
+        assert_eq!(refuted(&faint, 4), Some("independent_of_incident"));
+        let faint = Independent(build("oren-nayar", &["sigma=0.05"]));
+        assert_eq!(refuted(&faint, 5), Some("independent_of_incident"));
+    }
+
+    /// The models that declare independence of wi are exactly those whose glossy part is
+    /// off (a declaration left false is safe, but these are the ones a baked sampler
+    /// answers with one tree).
+    #[test]
+    fn independence_of_wi_is_declared_where_it_holds() {
+        for (name, params, expected) in [
+            ("lambert", vec![], true),
+            ("phong", vec!["ks=0"], true),
+            ("phong", vec![], false),
+            ("blinn-phong", vec!["ks=0"], true),
+            ("lewis-phong", vec!["ks=0"], true),
+            ("oren-nayar", vec!["sigma=0"], true),
+            ("oren-nayar", vec![], false),
+            ("cook-torrance", vec![], false),
+            ("htsg", vec![], false),
+        ] {
+            let b = build(name, &params);
+            assert_eq!(b.independent_of_incident(), expected, "{name} {params:?}");
+            let boxed: std::sync::Arc<dyn Brdf> = b.into();
+            assert_eq!(boxed.independent_of_incident(), expected, "forwarded");
+        }
     }
 }
 

@@ -308,6 +308,10 @@ pub struct BakedSampler {
     /// rather than by rotations onto its mirror direction (files of versions 5–7, which
     /// sample as they did). Isotropic grids always rotate.
     pub(crate) half_vector: bool,
+    /// Whether the model declares f_r independent of wi ([`Brdf::independent_of_incident`]):
+    /// the forward trees then all hold the same density, and the first answers every query
+    /// as it is (`BakedSampler::components`).
+    pub(crate) one_tree: bool,
 }
 
 /// The probability with which a baked sampler chooses the model's Dirac lobe, tabulated in
@@ -487,6 +491,7 @@ impl BakedSampler {
     ) -> Self {
         Self {
             half_vector,
+            one_tree: brdf.independent_of_incident(),
             delta_share: DeltaShare::new(&*brdf),
             brdf,
             config,
@@ -604,7 +609,9 @@ impl BakedSampler {
 
     /// The grid trees a query answers with at `given` for a role, in the current mode: each
     /// tree's (θi, φi) in degrees and its weight in the mixture (summing to 1; the defensive
-    /// share aside). One tree in a cell the bake found its neighbours agree in (see
+    /// share aside). One tree, the first, for a model whose f_r does not depend on wi
+    /// ([`Brdf::independent_of_incident`]); one tree in a cell the bake found its neighbours
+    /// agree in (see
     /// [`BakedSampler::nearest_cells`]), else the two (isotropic) or up to three trees around
     /// (the corners of the triangle of its grid cell that holds it).
     pub fn mixture_at(&self, role: Role, given: Vec3) -> Result<Vec<MixtureTree>, BakedError> {

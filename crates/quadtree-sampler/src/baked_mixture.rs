@@ -48,6 +48,11 @@
 //!   per neighbour, without evaluating the model (the neighbour that drew a sample reads its
 //!   leaf's density at the point without a look-up while the sample's direction maps back
 //!   into that leaf).
+//!
+//! A model that declares f_r independent of wi ([`brdf_core::Brdf::independent_of_incident`]:
+//! Lambert, a Phong with ks = 0, Oren–Nayar at σ = 0) has the same density in every tree,
+//! that of a tree built at any query's own wi: there its first tree is the only component,
+//! weight 1, not rotated.
 
 use crate::bake_grid::{
     Nearest, PhiDomain, isotropic_to_local, rotation_arc, rotation_between_mirrors_xz,
@@ -221,6 +226,21 @@ impl BakedSampler {
         out: &mut Components,
     ) -> usize {
         debug_assert!(out.is_empty());
+        // A model whose f_r is the same at every wi: every forward tree holds one density,
+        // that of a tree built at `given` itself, so the first tree serves as it is (no
+        // neighbours, no rotation, nothing lost below the horizon). A non-reciprocal
+        // model's adjoint trees blend as usual: the promise is about f_r's first argument.
+        if self.one_tree && core::ptr::eq(tables, &self.forward) {
+            if tables.slices.first().is_some_and(|s| s.live) {
+                out.push(Component {
+                    slice: 0,
+                    weight: 1.0,
+                    to_local: DMat3::IDENTITY,
+                    half: None,
+                });
+            }
+            return out.len();
+        }
         let g = given.as_dvec3();
         let mut sum = 0.0;
         // Isotropic: fold by the rotation about z by −φ (from cos φ and sin φ without

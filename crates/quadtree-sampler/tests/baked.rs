@@ -301,6 +301,73 @@ fn mean_weight_is_the_albedo() {
     );
 }
 
+/// A model that declares f_r independent of wi is answered at every wi by one tree, not
+/// rotated: at any wi, grazing included, its rejection-mode weight is the albedo itself
+/// (the tree is exact ∝ f·cos, and so is the defensive cosine share), and its pdf at a wo is
+/// the same whatever wi is, in both modes. Blended and rotated neighbours (as before the
+/// declaration existed) gave weights spread around the albedo. A model with a faint
+/// glossy part, which does not declare it, still blends.
+#[test]
+fn a_model_independent_of_wi_is_answered_by_one_tree() {
+    let wis = [
+        dir(0.0, 0.0),
+        dir(37.1, 20.0),
+        dir(85.0, 200.0),
+        dir(89.9, 301.0),
+    ];
+    for (name, params, albedo) in [
+        ("lambert", vec!["albedo=0.6"], 0.6),
+        ("phong", vec!["kd=0.7", "ks=0", "n=1000"], 0.7),
+        ("oren-nayar", vec!["sigma=0"], 0.8),
+    ] {
+        let mut baked = BakedSampler::new(model(name, &params), small()).unwrap();
+        for (k, &wi) in wis.iter().enumerate() {
+            let trees = baked.mixture_at(Role::Importance, wi).unwrap();
+            assert_eq!(trees.len(), 1, "{name} at {wi}: {trees:?}");
+            assert_eq!(trees[0].weight, 1.0);
+            for mode in [BakedMode::Rejection, BakedMode::Warp] {
+                baked.set_mode(mode);
+                let mut rng = Pcg64::seed_from_u64(k as u64);
+                let (mut worst, mut drawn) = (0.0f64, 0);
+                for _ in 0..20_000 {
+                    let Some(s) = baked
+                        .sample(
+                            wi,
+                            uniform_f32(&mut rng),
+                            Vec2::new(uniform_f32(&mut rng), uniform_f32(&mut rng)),
+                            &mut rng,
+                        )
+                        .unwrap()
+                    else {
+                        continue;
+                    };
+                    drawn += 1;
+                    let other = wis[(k + 1) % wis.len()];
+                    assert_eq!(baked.pdf(other, s.wo).unwrap(), s.pdf, "{name} {mode:?}");
+                    let w = f64::from(luminance(s.weight));
+                    worst = worst.max((w / albedo - 1.0).abs());
+                }
+                // Nothing is lost below the horizon: no rotation tilts the tree.
+                assert_eq!(drawn, 20_000, "{name} {mode:?} at {wi}");
+                if mode == BakedMode::Rejection {
+                    assert!(
+                        worst < 1e-4,
+                        "{name} at {wi}: weight off the albedo by {worst}"
+                    );
+                }
+            }
+        }
+    }
+    let faint = BakedSampler::new(model("phong", &["ks=0.01"]), small()).unwrap();
+    assert_eq!(
+        faint
+            .mixture_at(Role::Importance, dir(37.1, 20.0))
+            .unwrap()
+            .len(),
+        2
+    );
+}
+
 /// The non-reciprocal model's camera-path role samples the light direction by its adjoint:
 /// χ² against f_r(wi, given)·cos θi (judged on its own pdf), and its adjoint trees differ from
 /// the forward ones; a reciprocal model's two roles draw the same directions.

@@ -88,6 +88,11 @@ impl Brdf for BlinnPhong {
         Symmetry::ISOTROPIC_RECIPROCAL
     }
 
+    /// With ks = 0 only the diffuse kd/π is left.
+    fn independent_of_incident(&self) -> bool {
+        self.ks == Vec3::ZERO
+    }
+
     fn params(&self) -> ParamSet {
         ParamSet::from_checked(
             self.name(),

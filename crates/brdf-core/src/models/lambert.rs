@@ -46,6 +46,11 @@ impl Brdf for Lambert {
         Symmetry::ISOTROPIC_RECIPROCAL
     }
 
+    /// f = albedo/π at every pair.
+    fn independent_of_incident(&self) -> bool {
+        true
+    }
+
     fn params(&self) -> ParamSet {
         ParamSet::from_checked(self.name(), Self::PARAMS, &[ParamValue::Rgb(self.albedo)])
     }

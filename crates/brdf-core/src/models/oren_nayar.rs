@@ -68,6 +68,11 @@ impl Brdf for OrenNayar {
         Symmetry::ISOTROPIC_RECIPROCAL
     }
 
+    /// At σ = 0 the model is Lambert's: A = 1, B = 0.
+    fn independent_of_incident(&self) -> bool {
+        self.sigma == 0.0
+    }
+
     fn params(&self) -> ParamSet {
         ParamSet::from_checked(
             self.name(),
