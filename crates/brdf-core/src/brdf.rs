@@ -237,7 +237,8 @@ pub trait Brdf: Send + Sync + fmt::Debug {
     /// sampler then answers every incident direction with one of its trees, as it is: no
     /// neighbour mixture, no rotation, and the sampling quality of a tree built at that very
     /// wi. A promise about every pair, like [`Brdf::symmetry`] (a test checks every model's
-    /// by evaluation); false, the default, is always safe.
+    /// by evaluation); false, the default, is always safe. A false promise costs variance,
+    /// not correctness: the baked pdf stays the density of what the tree draws.
     fn independent_of_incident(&self) -> bool {
         false
     }

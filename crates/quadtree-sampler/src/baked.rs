@@ -611,9 +611,8 @@ impl BakedSampler {
     /// tree's (θi, φi) in degrees and its weight in the mixture (summing to 1; the defensive
     /// share aside). One tree, the first, for a model whose f_r does not depend on wi
     /// ([`Brdf::independent_of_incident`]); one tree in a cell the bake found its neighbours
-    /// agree in (see
-    /// [`BakedSampler::nearest_cells`]), else the two (isotropic) or up to three trees around
-    /// (the corners of the triangle of its grid cell that holds it).
+    /// agree in (see [`BakedSampler::nearest_cells`]); else the two (isotropic) or up to
+    /// three trees around (the corners of the triangle of its grid cell that holds it).
     pub fn mixture_at(&self, role: Role, given: Vec3) -> Result<Vec<MixtureTree>, BakedError> {
         let given = brdf_core::geometry::unit_direction_above(given)?;
         let (tables, _) = self.tables_for(role);

@@ -331,12 +331,8 @@ impl BakedSampler {
             } else {
                 &mut above
             };
-            for (k, mode) in [BakedMode::Rejection, BakedMode::Warp]
-                .into_iter()
-                .enumerate()
-            {
-                let q = f64::from(self.pdf_unit_in(mode, role, given, s.wo));
-                sums[k] += if q > 0.0 { t / q } else { f64::INFINITY };
+            for (sum, q) in sums.iter_mut().zip(self.both_densities(role, given, s.wo)) {
+                *sum += if q > 0.0 { t / q } else { f64::INFINITY };
             }
         }
         if drawn > 0 {
@@ -351,6 +347,13 @@ impl BakedSampler {
             cell.warp = Some(r(1));
         }
         cell
+    }
+
+    /// The mixture's density at `w` in each mode, rejection then warp (the order of the
+    /// check's sums), per unit solid angle.
+    fn both_densities(&self, role: Role, given: glam::Vec3, w: glam::Vec3) -> [f64; 2] {
+        [BakedMode::Rejection, BakedMode::Warp]
+            .map(|mode| f64::from(self.pdf_unit_in(mode, role, given, w)))
     }
 
     /// ∫ T²/p dω over the band of elevations below `top` (radians), per mode, T the check
@@ -378,12 +381,8 @@ impl BakedSampler {
             if t.is_nan() || t <= 0.0 {
                 continue;
             }
-            for (k, mode) in [BakedMode::Rejection, BakedMode::Warp]
-                .into_iter()
-                .enumerate()
-            {
-                let q = f64::from(self.pdf_unit_in(mode, role, given, w));
-                sums[k] += if q > 0.0 {
+            for (sum, q) in sums.iter_mut().zip(self.both_densities(role, given, w)) {
+                *sum += if q > 0.0 {
                     t * t / q * dw
                 } else {
                     f64::INFINITY

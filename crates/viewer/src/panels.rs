@@ -454,7 +454,8 @@ impl StatsPanel {
                 row(ui, "bound violations", s.bound_violations.to_string());
                 if !s.mixture.is_empty() {
                     // The baked sampler's grid trees at wi: one where the bake found that its
-                    // neighbours agree, else the blend.
+                    // neighbours agree (or the first everywhere, for a model that does not
+                    // depend on wi), else the blend.
                     let trees: Vec<String> = s
                         .mixture
                         .iter()

@@ -43,7 +43,8 @@ pub enum SamplerKind {
     Analytic,
     /// The baked sampler of SPEC §7 (rejection mode): trees at a grid of incident directions,
     /// baked once per model, parameters and build options, sampled at the current wi (off
-    /// its grid as the user drags) through the exact mixture of its rotated neighbours.
+    /// its grid as the user drags) through the exact mixture of its rotated neighbours (one
+    /// tree, as it is, for a model that does not depend on wi).
     Baked,
 }
 
