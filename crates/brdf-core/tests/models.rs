@@ -1022,6 +1022,9 @@ mod symmetry {
             ("blinn-phong", vec!["ks=0"]),
             ("lewis-phong", vec!["ks=0", "kd=0.9"]),
             ("oren-nayar", vec!["sigma=0"]),
+            ("phong", vec!["n=0"]),
+            ("blinn-phong", vec!["n=0", "ks=0.6"]),
+            ("lewis-phong", vec!["n=0"]),
         ]);
         v
     }
@@ -1127,6 +1130,9 @@ mod symmetry {
             ("lambert", vec![], true),
             ("phong", vec!["ks=0"], true),
             ("phong", vec![], false),
+            ("phong", vec!["n=0"], true),
+            ("blinn-phong", vec!["n=0"], true),
+            ("lewis-phong", vec!["n=0"], true),
             ("blinn-phong", vec!["ks=0"], true),
             ("lewis-phong", vec!["ks=0"], true),
             ("oren-nayar", vec!["sigma=0"], true),

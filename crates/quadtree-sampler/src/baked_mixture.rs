@@ -50,9 +50,9 @@
 //!   into that leaf).
 //!
 //! A model that declares f_r independent of wi ([`brdf_core::Brdf::independent_of_incident`]:
-//! Lambert, a Phong with ks = 0, Oren–Nayar at σ = 0) has the same density in every tree,
-//! that of a tree built at any query's own wi: there its first tree is the only component,
-//! weight 1, not rotated.
+//! Lambert, a Phong with ks = 0 or n = 0, Oren–Nayar at σ = 0) has the same density in every
+//! tree, that of a tree built at any query's own wi: there its first tree is the only
+//! component, weight 1, not rotated.
 
 use crate::bake_grid::{
     Nearest, PhiDomain, isotropic_to_local, rotation_arc, rotation_between_mirrors_xz,

@@ -88,9 +88,9 @@ impl Brdf for BlinnPhong {
         Symmetry::ISOTROPIC_RECIPROCAL
     }
 
-    /// With ks = 0 only the diffuse kd/π is left.
+    /// With ks = 0 only the diffuse kd/π is left; with n = 0 the lobe is a constant too.
     fn independent_of_incident(&self) -> bool {
-        self.ks == Vec3::ZERO
+        self.ks == Vec3::ZERO || self.n == 0.0
     }
 
     fn params(&self) -> ParamSet {
