@@ -637,13 +637,17 @@ impl BakedSampler {
     /// corner trees, rotated onto each other's mirror directions, sample each other's exact
     /// densities within [`crate::NEAREST_REJECTION_EXCESS`] (χ²) and
     /// [`crate::NEAREST_MAX_RATIO`] (the largest ratio of the densities). Warp mode: none.
+    /// A model independent of wi ([`Brdf::independent_of_incident`]) is answered by one tree
+    /// in every cell, in both modes.
     #[must_use]
     pub fn nearest_cells(&self, mode: BakedMode) -> (usize, usize) {
+        let cells = self.grid.cells();
         let snapped = match mode {
+            _ if self.one_tree => cells,
             BakedMode::Rejection => self.forward.nearest.theta.iter().filter(|&&b| b).count(),
             BakedMode::Warp => 0,
         };
-        (snapped, self.grid.cells())
+        (snapped, cells)
     }
 
     /// Test-only: blends the neighbours of every cell again (linear weights everywhere), as

@@ -326,6 +326,10 @@ fn a_model_independent_of_wi_is_answered_by_one_tree() {
         ("oren-nayar", vec!["sigma=0"], 0.8),
     ] {
         let mut baked = BakedSampler::new(model(name, &params), small()).unwrap();
+        let cells = baked.grid().cells();
+        for mode in [BakedMode::Rejection, BakedMode::Warp] {
+            assert_eq!(baked.nearest_cells(mode), (cells, cells), "{name}");
+        }
         for (k, &wi) in wis.iter().enumerate() {
             let trees = baked.mixture_at(Role::Importance, wi).unwrap();
             assert_eq!(trees.len(), 1, "{name} at {wi}: {trees:?}");

@@ -150,7 +150,8 @@ pub(crate) fn run(
         // --target-trials) was met: exact still, with more trials a sample.
         "budget_exhausted_trees": stopped,
         // Grid cells a rejection-mode query answers with its nearest tree along θ (one model
-        // evaluation fewer a sample and a pdf), of `cells` (warp mode blends everywhere).
+        // evaluation fewer a sample and a pdf), of `cells` (warp mode blends everywhere); all
+        // of them for a model independent of wi, answered by one tree everywhere.
         "nearest_cells": {
             "rejection": baked.nearest_cells(BakedMode::Rejection).0,
             "cells": grid.cells(),
