@@ -217,6 +217,26 @@ fn a_pdf_that_drops_a_neighbour_is_rejected() {
     assert!(c.p_value < 1e-10);
 }
 
+/// The mean luminance weight f·cos/pdf of `n` samples (lost samples score 0, every number
+/// drawn from a generator seeded by `seed`) and its standard error, with 10⁻⁶ of the mean
+/// in quadrature for the rounding of the f32 weights and of the quadrature albedo: Lambert's
+/// one exact tree draws weights equal to the albedo to within that rounding (1.9·10⁻⁸ of it,
+/// a standard error of 8.8·10⁻¹⁰ alone).
+fn mean_weight(s: &dyn DirectionSampler, n: u32, seed: u64) -> (f64, f64) {
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let (mut sum, mut sq) = (0.0f64, 0.0f64);
+    for _ in 0..n {
+        let w = s
+            .sample(&mut rng)
+            .map_or(0.0, |s: Sample| f64::from(luminance(s.weight)));
+        sum += w;
+        sq += w * w;
+    }
+    let m = sum / f64::from(n);
+    let var = (sq / f64::from(n) - m * m) / f64::from(n);
+    (m, (var + (1e-6 * m).powi(2)).sqrt())
+}
+
 /// The mean weight f·cos/pdf at off-grid wi (beyond the last row too) equals the quadrature
 /// albedo within 4 standard errors at 10⁶ samples (lost samples score 0), both modes; the
 /// broken pdf's does not.
@@ -237,32 +257,13 @@ fn mean_weight_is_the_albedo() {
         // horizon that the last row's tree, tilted onto wi's mirror, leaves uncovered.
         ("oren-nayar", vec!["sigma=0.5"], dir(89.9, 200.0)),
     ];
-    let mean = |s: &dyn DirectionSampler, seed: u64| {
-        let mut rng = Pcg64::seed_from_u64(seed);
-        let n = 1_000_000u32;
-        let (mut sum, mut sq) = (0.0f64, 0.0f64);
-        for _ in 0..n {
-            let w = s
-                .sample(&mut rng)
-                .map_or(0.0, |s: Sample| f64::from(luminance(s.weight)));
-            sum += w;
-            sq += w * w;
-        }
-        let m = sum / f64::from(n);
-        // The standard error, with 10⁻⁶ of the mean in quadrature for the rounding of the
-        // f32 weights and of the quadrature albedo: Lambert's one exact tree draws weights
-        // equal to the albedo to within that rounding (1.9·10⁻⁸ of it, a standard error of
-        // 8.8·10⁻¹⁰ alone).
-        let var = (sq / f64::from(n) - m * m) / f64::from(n);
-        (m, (var + (1e-6 * m).powi(2)).sqrt())
-    };
     for (k, (name, params, wi)) in cases.into_iter().enumerate() {
         let b = model(name, &params);
         let albedo = f64::from(luminance(directional_albedo(&*b, wi, 96, 6).as_vec3()));
         let mut baked = BakedSampler::new(b.clone(), small()).unwrap();
         for mode in [BakedMode::Rejection, BakedMode::Warp] {
             baked.set_mode(mode);
-            let (m, se) = mean(&baked.at(wi).unwrap(), k as u64);
+            let (m, se) = mean_weight(&baked.at(wi).unwrap(), 1_000_000, k as u64);
             println!("{name} {mode:?}: mean weight {m:.6} ± {se:.1e}, albedo {albedo:.6}");
             assert!(
                 (m - albedo).abs() <= 4.0 * se,
@@ -285,7 +286,7 @@ fn mean_weight_is_the_albedo() {
     let mut baked = BakedSampler::new(b, coarse).unwrap();
     for mode in [BakedMode::Rejection, BakedMode::Warp] {
         baked.set_mode(mode);
-        let (m, se) = mean(&baked.at(wi).unwrap(), 5);
+        let (m, se) = mean_weight(&baked.at(wi).unwrap(), 1_000_000, 5);
         println!("coarse oren-nayar {mode:?}: mean weight {m:.6} ± {se:.1e}, albedo {albedo:.6}");
         assert!(
             (m - albedo).abs() <= 4.0 * se,
@@ -299,7 +300,7 @@ fn mean_weight_is_the_albedo() {
     let wi = dir(3.5 * GRID_THETA_MAX_DEG / 7.0, 20.0);
     let albedo = f64::from(luminance(directional_albedo(&*b, wi, 96, 6).as_vec3()));
     let broken = baked.broken_pdf_for_testing();
-    let (m, se) = mean(&broken.at(wi), 99);
+    let (m, se) = mean_weight(&broken.at(wi), 1_000_000, 99);
     assert!(
         (m - albedo).abs() > 4.0 * se,
         "broken: {m} ± {se} vs {albedo}"
@@ -410,22 +411,12 @@ fn a_false_promise_of_independence_stays_unbiased() {
     for mode in [BakedMode::Rejection, BakedMode::Warp] {
         baked.set_mode(mode);
         let mut rng = Pcg64::seed_from_u64(7);
-        let n = 200_000u32;
-        let (mut sum, mut sq) = (0.0f64, 0.0f64);
-        for _ in 0..n {
-            let (uc, u) = (
-                uniform_f32(&mut rng),
-                Vec2::new(uniform_f32(&mut rng), uniform_f32(&mut rng)),
-            );
-            let w = baked.sample(wi, uc, u, &mut rng).unwrap().map_or(0.0, |s| {
+        for _ in 0..10_000 {
+            if let Some(s) = baked.at(wi).unwrap().sample(&mut rng) {
                 assert_eq!(s.pdf, baked.pdf(wi, s.wo).unwrap());
-                f64::from(luminance(s.weight))
-            });
-            sum += w;
-            sq += w * w;
+            }
         }
-        let m = sum / f64::from(n);
-        let se = ((sq / f64::from(n) - m * m) / f64::from(n)).sqrt();
+        let (m, se) = mean_weight(&baked.at(wi).unwrap(), 200_000, 7);
         println!("{mode:?}: mean weight {m:.6} ± {se:.1e}, albedo {albedo:.6}");
         assert!(
             (m - albedo).abs() <= 4.0 * se,
