@@ -7,10 +7,10 @@
 /// values (and f32 pdfs), so a piece's Gauss–Kronrod difference cannot fall much below this
 /// however far it is halved (pure rounding gives at most an eighth of it: over 50 000 pieces
 /// of a smooth f rounded to f32, widths 10⁻⁷ to 10⁻², at most 0.50·2⁻²⁴ of ∫|f|, median
-/// 0.08·2⁻²⁴); a tolerance under it
-/// only spent evaluations chasing rounding: every piece of every cell refined to the
-/// limit, nested (`brdf test --tol 1e-10` on htsg had not finished after 600 s; `--tol
-/// 1e-9` with `--cells 2`, 144 s, against 1.6 s at the default 10⁻⁷).
+/// 0.08·2⁻²⁴); a tolerance under it only spent evaluations chasing rounding: every piece of
+/// every cell refined to the limit, nested (`brdf test --tol 1e-10` on htsg had not
+/// finished after 600 s; `--tol 1e-9` with `--cells 2`, 144 s, against 1.6 s at the
+/// default 10⁻⁷).
 pub(crate) const NOISE: f64 = 4.0 / 16_777_216.0;
 
 /// Most intervals one adaptive integration may split its range into.
