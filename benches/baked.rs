@@ -3,16 +3,19 @@
 //! sample that #18's goals are stated in (cook-torrance m = 0.1): at the bench's fixed wi
 //! (`analytic`) and over the baked rows' own random wi (`analytic-random-wi`, the
 //! like-for-like one).
-//! Rows per set: `sample` in rejection and warp mode and `pdf(wi, wo)` in both modes, on
-//! batches of 1024 calls. Ratios come from one run: `cargo bench --bench baked`.
+//! Rows per set: `sample` in rejection and warp mode and `pdf(wi, wo)` in both modes, and a
+//! path vertex's work (one sample and, at a light sample's direction, f_r and the pdf, at one
+//! random given direction) by three calls to the sampler (`vertex-per-call`) and by one
+//! `BakedSampler::point` answering all three (`vertex-point`), on batches of 1024. Ratios
+//! come from one run: `cargo bench --bench baked`.
 
 #[macro_use]
 mod common;
 
 use brdf_sampling::glam::{Vec2, Vec3};
 use brdf_sampling::quadtree_sampler::{
-    AnySampler, BakeConfig, BakedMode, BakedSampler, BuildConfig, DirectionSampler, SamplerMode,
-    uniform_f32,
+    AnySampler, BakeConfig, BakedMode, BakedSampler, BuildConfig, DirectionSampler, Role,
+    SamplerMode, uniform_f32,
 };
 use brdf_sampling::warp::sample_cosine_hemisphere;
 use criterion::{BenchmarkId, Criterion, Throughput};
@@ -47,6 +50,10 @@ fn bench(c: &mut Criterion) {
             let u = Vec2::new(uniform_f32(&mut rng), uniform_f32(&mut rng));
             (wi, uniform_f32(&mut rng), u)
         })
+        .collect();
+    // A light sample's direction for each vertex (cosine-distributed, independent of wi).
+    let lights: Vec<Vec3> = (0..BATCH)
+        .map(|_| sample_cosine_hemisphere(Vec2::new(uniform_f32(&mut rng), uniform_f32(&mut rng))))
         .collect();
     let mut group = c.benchmark_group("baked/beckmann");
     group.throughput(Throughput::Elements(BATCH as u64));
@@ -99,6 +106,26 @@ fn bench(c: &mut Criterion) {
                 b.iter(|| {
                     for &(wi, wo) in &pairs {
                         black_box(baked.pdf(wi, wo).ok());
+                    }
+                });
+            });
+            let role = Role::Radiance;
+            group.bench_function(BenchmarkId::new("vertex-per-call", kind), |b| {
+                b.iter(|| {
+                    for (&(wi, uc, u), &light) in inputs.iter().zip(&lights) {
+                        black_box(baked.sample_as(role, wi, uc, u, &mut rng).ok());
+                        black_box(baked.eval_pdf_as(role, wi, light).ok());
+                    }
+                });
+            });
+            group.bench_function(BenchmarkId::new("vertex-point", kind), |b| {
+                b.iter(|| {
+                    for (&(wi, uc, u), &light) in inputs.iter().zip(&lights) {
+                        let Ok(point) = baked.point(role, wi) else {
+                            continue;
+                        };
+                        black_box(point.sample(uc, u, &mut rng));
+                        black_box(point.eval_pdf(light).ok());
                     }
                 });
             });

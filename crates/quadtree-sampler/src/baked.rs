@@ -34,7 +34,7 @@
 //! and the mixture keeps the pdf exact.
 
 use crate::bake_grid::{BakeGrid, Nearest};
-use crate::baked_views::{BakedAt, BrokenPdf};
+use crate::baked_views::{BakedAt, BakedPoint, BrokenPdf};
 use crate::config::BuildConfig;
 use crate::error::{BakeError, BakedError, BuildError};
 use crate::packed::PackedTree;
@@ -728,20 +728,47 @@ impl BakedSampler {
     ) -> Result<Option<Sample>, BakedError> {
         let given = brdf_core::geometry::unit_direction_above(given)?;
         let p = self.delta_probability(given);
+        Ok(self.whole_sample(given, p, uc, |uc| self.sample_unit(role, given, uc, u, rng)))
+    }
+
+    /// The whole model's draw at a checked `given` whose delta probability is `p`: the
+    /// Dirac lobe when `uc` < p, else `continuous` (the continuous part's draw) with `uc`
+    /// rescaled to [0, 1), its pdf times 1 − p. The one expression behind
+    /// [`BakedSampler::sample_as`] and [`BakedPoint::sample`].
+    #[inline(always)]
+    pub(crate) fn whole_sample(
+        &self,
+        given: Vec3,
+        p: f32,
+        uc: f32,
+        continuous: impl FnOnce(f32) -> Option<Sample>,
+    ) -> Option<Sample> {
         if p <= 0.0 {
-            return Ok(self.sample_unit(role, given, uc, u, rng));
+            return continuous(uc);
         }
         if uc < p {
-            return Ok(BrdfSample::delta(
-                mirror(given),
-                self.brdf.delta_reflectance(given),
-                p,
-            ));
+            return BrdfSample::delta(mirror(given), self.brdf.delta_reflectance(given), p);
         }
         let uc = ((uc - p) / (1.0 - p)).min(1.0 - f32::EPSILON / 2.0);
-        Ok(self
-            .sample_unit(role, given, uc, u, rng)
-            .map(|s| s.with_pdf(s.pdf * (1.0 - p))))
+        continuous(uc).map(|s| s.with_pdf(s.pdf * (1.0 - p)))
+    }
+
+    /// The sampler prepared at one given direction for a role (local frame; finite,
+    /// non-zero, above the horizon, else a typed error): what a path vertex asks of its
+    /// material, a sample, then f_r and the pdf at a light sample's direction, all at the
+    /// same given direction, answered without finding that direction's neighbour trees and
+    /// their maps again for each call. Its answers are bit-identical to
+    /// [`BakedSampler::sample_as`], [`BakedSampler::pdf_as`] and [`BakedSampler::eval_as`]
+    /// at the same direction (a test says so), in the mode the sampler has now (the borrow
+    /// keeps it so).
+    #[inline(always)]
+    pub fn point(&self, role: Role, given: Vec3) -> Result<BakedPoint<'_>, BakedError> {
+        let given = brdf_core::geometry::unit_direction_above(given)?;
+        Ok(BakedPoint {
+            baked: self,
+            delta: self.delta_probability(given),
+            query: self.query(self.mode, role, given),
+        })
     }
 
     /// The density with which [`BakedSampler::sample_as`] draws `sampled` as a continuous
@@ -756,9 +783,12 @@ impl BakedSampler {
     /// f_r for a role (continuous part, RGB, 1/sr, no cosine): f_r(given, sampled) for
     /// [`Role::Importance`], f_r(sampled, given) for [`Role::Radiance`].
     pub fn eval_as(&self, role: Role, given: Vec3, sampled: Vec3) -> Result<Vec3, BakedError> {
-        // Checked, not renormalised here: the models renormalise in f64, so a sample's `f`
-        // and `eval` of the same f32 vectors are bit-identical.
-        brdf_core::geometry::unit_direction(given)?;
+        // The given direction as `sample_as` and `point` use it (checked and normalised), the
+        // sampled one checked but as it is (the models renormalise in f64): a sample's `f`
+        // and `eval` of the same f32 vectors are then bit-identical, whatever the given
+        // vector's length. (With the given one as passed, a world-frame query's rotated
+        // vector, unit only to rounding, gave an f one f32 ulp away from its sample's.)
+        let given = brdf_core::geometry::unit_direction(given)?;
         brdf_core::geometry::unit_direction(sampled)?;
         Ok(self.eval_unit(role, given, sampled))
     }

@@ -106,7 +106,7 @@ pub use baked_coverage::{
     MAX_COVERAGE_SAMPLES,
 };
 pub use baked_nearest::{NEAREST_MAX_RATIO, NEAREST_REJECTION_EXCESS};
-pub use baked_views::{BakedAt, BrokenAt, BrokenPdf, WorldBsdf};
+pub use baked_views::{BakedAt, BakedPoint, BrokenAt, BrokenPdf, WorldBsdf, WorldPoint};
 pub use brdf_core;
 pub use config::{BuildConfig, EVALUATIONS_PER_NODE, IntegrationRule};
 pub use encoder::refleja;

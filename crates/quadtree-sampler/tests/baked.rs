@@ -91,11 +91,46 @@ fn sample_pdf_and_eval_agree_with_pdf_and_eval() {
             let mut rng = Pcg64::seed_from_u64(3);
             for wi in incident(name) {
                 for role in [Role::Importance, Role::Radiance] {
+                    // The same answers prepared once at wi: bit for bit, the same numbers
+                    // drawn from the RNG.
+                    let point = baked.point(role, wi).unwrap();
+                    assert_eq!((point.role(), point.mode()), (role, mode));
                     let mut got = 0;
                     for _ in 0..300 {
                         let uc = uniform_f32(&mut rng);
                         let u = Vec2::new(uniform_f32(&mut rng), uniform_f32(&mut rng));
-                        let Some(s) = baked.sample_as(role, wi, uc, u, &mut rng).unwrap() else {
+                        let mut twin = rng.clone();
+                        let s = baked.sample_as(role, wi, uc, u, &mut rng).unwrap();
+                        assert_eq!(
+                            point.sample(uc, u, &mut twin),
+                            s,
+                            "{name} {mode:?} {role:?}"
+                        );
+                        assert_eq!(twin, rng);
+                        let mut twin = rng.clone();
+                        assert_eq!(
+                            point.sample_continuous(uc, u, &mut twin),
+                            baked
+                                .sample_continuous_as(role, wi, uc, u, &mut rng.clone())
+                                .unwrap()
+                        );
+                        // And at a direction no sample came from (a light sample's).
+                        let light = Vec3::new(
+                            uniform_f32(&mut twin) - 0.5,
+                            uniform_f32(&mut twin) - 0.5,
+                            uniform_f32(&mut twin),
+                        );
+                        let (f, p) = point.eval_pdf(light).unwrap();
+                        assert_eq!(f, baked.eval_as(role, wi, light).unwrap());
+                        assert_eq!(
+                            p.to_bits(),
+                            baked.pdf_as(role, wi, light).unwrap().to_bits()
+                        );
+                        assert_eq!(
+                            point.pdf_continuous(light).unwrap().to_bits(),
+                            baked.pdf_continuous_as(role, wi, light).unwrap().to_bits()
+                        );
+                        let Some(s) = s else {
                             continue;
                         };
                         got += 1;
@@ -103,6 +138,7 @@ fn sample_pdf_and_eval_agree_with_pdf_and_eval() {
                             continue;
                         }
                         let pdf = baked.pdf_as(role, wi, s.wo).unwrap();
+                        assert_eq!(point.pdf(s.wo).unwrap().to_bits(), pdf.to_bits());
                         // Bit-identical: one expression behind both, and in warp mode
                         // the drawing leaf's stored density is the one a look-up finds.
                         assert_eq!(
@@ -549,7 +585,31 @@ fn world_frame() {
         let f = world.eval(Role::Importance, wi, sw.wo).unwrap();
         assert!((f - sl.f).abs().max_element() <= 1e-3 * sl.f.max_element());
     }
+    // Prepared at wi, the world point answers as the wrapper does, bit for bit.
+    for role in [Role::Importance, Role::Radiance] {
+        let point = world.point(role, wi).unwrap();
+        assert!((point.local().given() - world.frame().to_local(wi).normalize()).length() < 1e-6);
+        let mut a = Pcg64::seed_from_u64(5);
+        for _ in 0..100 {
+            let (uc, u) = (
+                uniform_f32(&mut a),
+                Vec2::new(uniform_f32(&mut a), uniform_f32(&mut a)),
+            );
+            let mut b = a.clone();
+            let sw = world.sample(role, wi, uc, u, &mut a).unwrap();
+            assert_eq!(point.sample(uc, u, &mut b), sw);
+            let Some(sw) = sw else { continue };
+            assert_eq!(
+                point.eval_pdf(sw.wo).unwrap(),
+                (
+                    world.eval(role, wi, sw.wo).unwrap(),
+                    world.pdf(role, wi, sw.wo).unwrap()
+                )
+            );
+        }
+    }
     assert!(WorldBsdf::new(&baked, Vec3::ZERO, None).is_err());
+    assert!(world.point(Role::Importance, -n).is_err());
 }
 
 /// A bake with rayon (1 and 4 threads) is bit-identical to the serial bake. (Only with the
@@ -837,7 +897,31 @@ fn bad_input_is_a_typed_error() {
             Err(BakedError::Direction(_))
         ));
         assert!(baked.pdf(bad, Vec3::Z).is_err());
+        for role in [Role::Importance, Role::Radiance] {
+            assert!(matches!(
+                baked.point(role, bad),
+                Err(BakedError::Direction(_))
+            ));
+        }
     }
+    let point = baked
+        .point(Role::Importance, Vec3::new(0.3, 0.1, 1.0))
+        .unwrap();
+    for bad in [
+        Vec3::ZERO,
+        Vec3::new(f32::NAN, 0.0, 1.0),
+        Vec3::new(0.0, f32::INFINITY, 1.0),
+    ] {
+        assert!(matches!(point.pdf(bad), Err(BakedError::Direction(_))));
+        assert!(matches!(
+            point.pdf_continuous(bad),
+            Err(BakedError::Direction(_))
+        ));
+        assert!(matches!(point.eval(bad), Err(BakedError::Direction(_))));
+        assert!(point.eval_pdf(bad).is_err());
+    }
+    assert_eq!(point.pdf(Vec3::new(0.0, 0.0, -1.0)).unwrap(), 0.0);
+    assert_eq!(point.eval(Vec3::new(0.0, 0.0, -1.0)).unwrap(), Vec3::ZERO);
     assert!(
         baked
             .pdf(Vec3::Z, Vec3::new(f32::INFINITY, 0.0, 1.0))
