@@ -761,6 +761,7 @@ impl BakedSampler {
     /// [`BakedSampler::sample_as`], [`BakedSampler::pdf_as`] and [`BakedSampler::eval_as`]
     /// at the same direction (a test says so), in the mode the sampler has now (the borrow
     /// keeps it so).
+    // Inlined with `query`: the point is then built in its caller's frame, not copied there.
     #[inline(always)]
     pub fn point(&self, role: Role, given: Vec3) -> Result<BakedPoint<'_>, BakedError> {
         let given = brdf_core::geometry::unit_direction_above(given)?;
