@@ -121,14 +121,14 @@ fn sample_pdf_and_eval_agree_with_pdf_and_eval() {
                             uniform_f32(&mut twin),
                         );
                         let (f, p) = point.eval_pdf(light).unwrap();
-                        assert_eq!(f, baked.eval_as(role, wi, light).unwrap());
-                        assert_eq!(
-                            p.to_bits(),
-                            baked.pdf_as(role, wi, light).unwrap().to_bits()
-                        );
+                        let at = format!("{name} {mode:?} {role:?} wi {wi} light {light}");
+                        assert_eq!(f, baked.eval_as(role, wi, light).unwrap(), "{at}");
+                        let want = baked.pdf_as(role, wi, light).unwrap();
+                        assert_eq!(p.to_bits(), want.to_bits(), "{at}: {p} vs {want}");
                         assert_eq!(
                             point.pdf_continuous(light).unwrap().to_bits(),
-                            baked.pdf_continuous_as(role, wi, light).unwrap().to_bits()
+                            baked.pdf_continuous_as(role, wi, light).unwrap().to_bits(),
+                            "{at}"
                         );
                         let Some(s) = s else {
                             continue;
