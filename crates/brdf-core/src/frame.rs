@@ -37,14 +37,26 @@ impl Frame {
     }
 
     /// A frame from a normal and a tangent; the tangent is made orthogonal to the normal
-    /// (Gram–Schmidt). Errors when either is not a direction or they are parallel.
+    /// (Gram–Schmidt). Errors when either is not a direction or they are parallel: within
+    /// 10⁻⁴ rad of each other (or of opposite directions), where the tangent's part across
+    /// the normal is too small to give a direction.
     pub fn from_normal_tangent(normal: Vec3, tangent: Vec3) -> Result<Self, DirectionError> {
         let z = unit_direction(normal)?;
         let t = unit_direction(tangent)?;
-        let x = (t - t.dot(z) * z)
-            .try_normalize()
-            .filter(|x| x.dot(t) > 1e-4)
-            .ok_or(DirectionError::ParallelTangent)?;
+        // |r| is the sine of the angle between t and z. Its direction is only as good as
+        // |r| is large against f32 rounding (≈ 10⁻⁷): a tangent equal to the normal left an
+        // r of rounding alone, along t itself, and the frame had x = z (until this was
+        // tested by length; its direction against t, which it tested before, was 1).
+        let r = t - t.dot(z) * z;
+        let s = r.length();
+        if s <= 1e-4 {
+            return Err(DirectionError::ParallelTangent);
+        }
+        let mut x = r / s;
+        // Near the threshold x keeps some 10⁻³ of z from the cancellation: one pass more.
+        if x.dot(z).abs() > 1e-6 {
+            x = (x - x.dot(z) * z).normalize();
+        }
         Ok(Self {
             x,
             y: z.cross(x),
@@ -108,6 +120,42 @@ mod tests {
             Frame::from_normal_tangent(Vec3::Z, Vec3::Z * 2.0),
             Err(DirectionError::ParallelTangent)
         );
+        // A tangent equal (or opposite) to a normal off the axes: Gram–Schmidt leaves only
+        // rounding, which once normalised into x = z (a frame that maps every local
+        // direction into a line).
+        for n in [
+            Vec3::new(1.0, 1.0, 1e-30),
+            Vec3::splat(1e-30),
+            Vec3::splat(1e30),
+            Vec3::new(3e38, 3e38, 1.0),
+            Vec3::new(-0.3, 0.8, 0.1),
+            Vec3::new(0.6, -0.48, 0.64),
+        ] {
+            for t in [
+                n,
+                -n,
+                n * 0.5,
+                n + Vec3::splat(1e-9 * n.abs().max_element()),
+            ] {
+                assert_eq!(
+                    Frame::from_normal_tangent(n, t),
+                    Err(DirectionError::ParallelTangent),
+                    "n = {n}, t = {t}"
+                );
+            }
+        }
+        // Just beyond the threshold, and far from it: orthonormal, x within the plane of
+        // n and t, on t's side.
+        for (n, t) in [
+            (Vec3::Z, Vec3::new(2e-4, 0.0, 1.0)),
+            (Vec3::Z, Vec3::new(-3e-4, 1e-4, -1.0)),
+            (Vec3::new(-0.3, 0.8, 0.1), Vec3::new(-0.3, 0.8, 0.1001)),
+            (Vec3::new(0.6, -0.48, 0.64), Vec3::X),
+        ] {
+            let f = Frame::from_normal_tangent(n, t).unwrap();
+            check_orthonormal(&f);
+            assert!(f.x.dot(t) > 0.0 && f.x.cross(n).dot(t).abs() < 1e-6 * t.length());
+        }
         assert_eq!(
             Frame::from_normal(Vec3::ZERO),
             Err(DirectionError::ZeroLength)
