@@ -152,7 +152,8 @@ pub struct WeightTest {
     /// The albedo (luminance) it must equal.
     pub albedo: f64,
     /// The two-sided p-value of |mean − albedo| against the standard error and
-    /// [`WEIGHT_FLOOR`] together.
+    /// [`WEIGHT_FLOOR`] together; 0 where the mean, its standard error or the albedo is
+    /// NaN or infinite (a weight, or the f·cos oracle, was).
     pub p_value: f64,
     /// Whether p ≥ the per-test significance.
     pub passed: bool,
@@ -227,12 +228,17 @@ impl fmt::Display for SuiteReport {
         for w in &self.weight_tests {
             writeln!(
                 f,
-                "mean weight {:.6} ± {:.2e} against albedo {:.6}: p = {:.3e}, {}",
+                "mean weight {:.6} ± {:.2e} against albedo {:.6}: p = {:.3e}, {}{}",
                 w.mean,
                 w.standard_error,
                 w.albedo,
                 w.p_value,
-                if w.passed { "passed" } else { "REJECTED" }
+                if w.passed { "passed" } else { "REJECTED" },
+                if w.mean.is_finite() && w.standard_error.is_finite() && w.albedo.is_finite() {
+                    ""
+                } else {
+                    " (not finite: a weight or the f·cos oracle is NaN or infinite)"
+                }
             )?;
         }
         Ok(())
@@ -465,7 +471,11 @@ fn weight_test<S: Sampler + ?Sized>(
     let se = ((q / n - mean * mean).max(0.0) / n).sqrt();
     // The difference is judged against the counting error and the relative floor together.
     let scale = (se * se + (WEIGHT_FLOOR * albedo).powi(2)).sqrt();
-    let z = if scale > 0.0 {
+    // A NaN or infinite weight or oracle is judged as far off as can be (p = 0): with an
+    // infinite albedo the quotient below was NaN, and so was the p-value.
+    let z = if !(mean.is_finite() && albedo.is_finite() && scale.is_finite()) {
+        f64::INFINITY
+    } else if scale > 0.0 {
         (mean - albedo).abs() / scale
     } else if mean == albedo {
         0.0

@@ -205,3 +205,57 @@ fn bad_settings_are_errors() {
         );
     }
 }
+
+/// An f·cos oracle that is NaN or infinite somewhere, or everywhere, is rejected with
+/// reasons that say so, never with a NaN p-value: the χ² tests because its masses are not
+/// a distribution (where the integration meets the bad values), the mean weight with p = 0
+/// (an infinite oracle once gave it p = NaN). The sampler itself is exact.
+#[test]
+fn a_non_finite_oracle_is_rejected_without_a_nan() {
+    let g = Ggx {
+        alpha: 0.3,
+        f0: 0.04,
+    };
+    let wi = incident(40.0);
+    let sampler = FnSampler::new("ggx", |_, u| g.sample(wi, u), |wo| g.pdf(wi, wo));
+    let fcos = |wo: Vec3| f64::from(g.f_cos(wi, wo));
+    let settings = Settings {
+        grids: Settings::both_grids(5),
+        samples: 20_000,
+        against: Against::OwnPdf,
+        mean_weight: true,
+        ..Settings::default()
+    };
+    let oracles: [(&str, &(dyn Fn(Vec3) -> f64 + Sync)); 4] = [
+        ("inf", &|_| f64::INFINITY),
+        ("nan", &|_| f64::NAN),
+        ("huge", &|_| 1e308),
+        ("nan in a band", &|wo: Vec3| {
+            if (0.3..0.31).contains(&wo.x) {
+                f64::NAN
+            } else {
+                fcos(wo)
+            }
+        }),
+    ];
+    for (name, oracle) in oracles {
+        let r = check(&sampler, oracle, &[], &settings).unwrap();
+        assert_eq!(r.verdict(), Verdict::Rejected, "{name}: {r}");
+        let w = &r.weight_tests[0];
+        assert!(!w.passed && w.p_value == 0.0, "{name}: {w:?}");
+        let text = r.to_string();
+        assert!(text.contains("not finite"), "{name}: {text}");
+        // (A band the integrator's nodes miss leaves finite masses: only the weights see it.)
+        for t in r.tests.iter().filter(|_| name != "nan in a band") {
+            assert!(
+                t.reasons()
+                    .iter()
+                    .any(|reason| reason.to_string().contains("not a distribution")),
+                "{name}: {text}"
+            );
+        }
+    }
+    // The same sampler with its true oracle passes: the rejections above are the oracle's.
+    let r = check(&sampler, fcos, &[], &settings).unwrap();
+    assert!(r.passed(), "{r}");
+}
