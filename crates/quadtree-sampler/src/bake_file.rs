@@ -988,6 +988,53 @@ mod tests {
         refused(edit(&|v, s| v.push((s.warp.len() as u32, v[0].1, v[0].2))));
     }
 
+    /// A tree volume that is not its leaves' sum, in a file whose checksum is right (a
+    /// writer's bug, not a corrupted byte), is a typed error: every rejection-mode pdf of
+    /// that tree would be off by the ratio (a volume flushed to 10⁻³⁰⁰ by one zeroed byte
+    /// made it infinite, found by mutating payloads under a recomputed checksum). Rounding
+    /// the volume to f32 and back, as a writer might, still reads.
+    #[test]
+    fn a_volume_that_is_not_its_leaves_sum_is_refused() {
+        let baked = phong_bake(&["n=1000"], 4);
+        let edit = |f: &dyn Fn(&mut f64)| {
+            let (forward, _) = baked.tables();
+            let mut record = Record {
+                model: baked.brdf().name().to_string(),
+                params: param_strings(&**baked.brdf()),
+                config: ConfigRecord::of(baked.config()),
+                domain: domain_code(baked.grid().domain()),
+                forward: tables_record(forward),
+                adjoint: None,
+            };
+            f(&mut record.forward.slices[1].tree.volume);
+            BakedSampler::from_bytes(&frame(
+                BAKE_FORMAT_VERSION,
+                &postcard::to_allocvec(&record).unwrap(),
+            ))
+        };
+        assert!(edit(&|_| {}).is_ok());
+        assert!(edit(&|v| *v = f64::from(*v as f32)).is_ok());
+        for change in [
+            (|v: &mut f64| *v *= 1.0 + 1e-5) as fn(&mut f64),
+            |v| *v *= 0.5,
+            |v| *v = 1e-300,
+            |v| *v = 0.0,
+            |v| *v = f64::from_bits(v.to_bits() ^ (1 << 40)),
+        ] {
+            assert!(
+                matches!(
+                    edit(&change),
+                    Err(BakeFileError::Tree {
+                        index: 1,
+                        fault: "a tree volume that is not the sum of its leaves' v1"
+                    })
+                ),
+                "{:?}",
+                edit(&change).err()
+            );
+        }
+    }
+
     /// A version 5 file (the trees without nearest-tree cells, as this library wrote them
     /// before) still reads: the same trees, and a sampler that blends every cell as it did,
     /// bit for bit the pdf of this bake with its cells cleared.

@@ -655,7 +655,8 @@ impl PackedTree {
     /// return a negative or NaN bound: one root; every inner node's four children lie after
     /// it, inside the arena, and are nobody else's; child starts are ordered and within
     /// [0, 2³¹]; a leaf's chart is one of the four and fits the map; its bound is finite and
-    /// ≥ 0; the depth stays within 30; `volume` is finite and ≥ 0.
+    /// ≥ 0; the depth stays within 30; `volume` is finite, ≥ 0, and the sum of the live
+    /// leaves' v1 (to their f32 rounding).
     pub(crate) fn from_raw(
         raw: &[[u32; 4]],
         map: DiskMap,
@@ -742,6 +743,22 @@ impl PackedTree {
         if parent_seen[0] || parent_seen[1..].iter().any(|&p| !p) {
             return Err("nodes that are not one tree");
         }
+        // V is the f64 sum of the live leaves' v1, and each stored v1 is that v1 rounded to
+        // f32 (relative 2⁻²⁴, or under 2⁻¹⁴⁹ where it is subnormal or 0): their sum
+        // recovers V to 10⁻⁶ of it. A V that does not (a bit of it flipped by a writer the
+        // checksum trusts) scales every rejection-mode pdf by the error: a V flushed to
+        // 10⁻³⁰⁰ made the pdf infinite.
+        let (mut sum, mut live) = (0.0f64, 0usize);
+        for w in raw {
+            if w[0] & (LEAF_FLAG | LIVE_FLAG) == LEAF_FLAG | LIVE_FLAG {
+                sum += f64::from(f32::from_bits(w[2]));
+                live += 1;
+            }
+        }
+        let slack = 1e-6 * volume.max(sum) + live as f64 * 1.5e-45;
+        if (live == 0) != (volume == 0.0) || (sum - volume).abs() > slack {
+            return Err("a tree volume that is not the sum of its leaves' v1");
+        }
         let nodes = raw
             .iter()
             .map(|w| PackedNode {
@@ -799,8 +816,17 @@ mod tests {
         assert_eq!(packed.nodes.len(), 1);
         assert_eq!(packed.nodes[0].chart(), Chart::Polar);
         let raw = packed.raw_nodes();
+        // (The trees made below repeat the leaf: their volume is their leaves' sum.)
         let read = |raw: &[[u32; 4]]| {
-            PackedTree::from_raw(raw, DiskMap::Orthographic, packed.volume, false)
+            let v = if raw.len() == 1 {
+                packed.volume
+            } else {
+                raw.iter()
+                    .filter(|w| w[0] & LEAF_FLAG != 0)
+                    .map(|w| f64::from(f32::from_bits(w[2])))
+                    .sum()
+            };
+            PackedTree::from_raw(raw, DiskMap::Orthographic, v, false)
         };
         assert_eq!(read(&raw).unwrap().nodes, packed.nodes);
         // Polar leaves belong to both maps (the concentric root's is a sector too); the
