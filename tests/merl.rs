@@ -185,9 +185,20 @@ fn malformed_files_are_usage_errors_naming_the_file() {
     nan[12 + 8 * 77..12 + 8 * 78].copy_from_slice(&f64::NAN.to_le_bytes());
     let nan_file = dir.path().join("nan.binary");
     std::fs::write(&nan_file, &nan).unwrap();
+    // Finite, but an f_r no measurement gives: 1e300 was an infinite f_r in f32 (the
+    // quadtrees failed with "NaN expected trials"), and values near f32's range made the
+    // cosine and analytic samplers' mean weights NaN.
+    let mut huge = bytes.clone();
+    huge[12 + 8 * 4321..12 + 8 * 4322].copy_from_slice(&1e300f64.to_le_bytes());
+    let huge_file = dir.path().join("huge.binary");
+    std::fs::write(&huge_file, &huge).unwrap();
     for (path, words) in [
         (truncated.clone(), "truncated"),
         (nan_file.clone(), "NaN or infinite"),
+        (
+            huge_file.clone(),
+            "value 4321 of the red channel is an f_r over 1e20",
+        ),
         (dir.path().join("absent.binary"), "no such file"),
         (dir.path().to_path_buf(), "directory"),
     ] {

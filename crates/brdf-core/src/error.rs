@@ -266,6 +266,14 @@ pub enum DataFault {
     },
     /// Built without `std`: there is no file system to read from.
     NoFileSystem,
+    /// A stored value is finite but its f_r exceeds
+    /// [`crate::models::merl::MERL_MAX_F`] (10²⁰ /sr): no measurement gives that.
+    TooLarge {
+        /// 0 red, 1 green, 2 blue.
+        channel: u8,
+        /// The bin within the channel.
+        bin: u32,
+    },
 }
 
 impl fmt::Display for DataFault {
@@ -294,6 +302,12 @@ impl fmt::Display for DataFault {
                 ["red", "green", "blue"][usize::from(*channel).min(2)]
             ),
             Self::NoFileSystem => f.write_str("cannot be read: built without std"),
+            Self::TooLarge { channel, bin } => write!(
+                f,
+                "value {bin} of the {} channel is an f_r over 1e20 /sr, which no measurement \
+                 gives",
+                ["red", "green", "blue"][usize::from(*channel).min(2)]
+            ),
         }
     }
 }

@@ -36,6 +36,14 @@ pub const MERL_FILE_BYTES: u64 = 12 + 3 * 8 * MERL_BINS as u64;
 /// 1.66/1500), as the database's reader applies it.
 pub const MERL_SCALE: [f64; 3] = [1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0];
 
+/// The largest f_r (1/sr, once scaled by [`MERL_SCALE`]) a file may hold: 10²⁰. A table's
+/// bins are about a degree wide, so even a perfect mirror tabulated peaks near 10⁴, and the
+/// sharpest models of this crate tabulated (Cook–Torrance m = 0.001 at the grazing floor)
+/// near 10¹³; a larger value is a broken file, and kept, it would overflow the samplers'
+/// f32 arithmetic (weights f·cos/pdf with a defensive share of 10⁻⁶, and f itself near
+/// 3.4·10³⁸). A file beyond it is [`DataFault::TooLarge`].
+pub const MERL_MAX_F: f64 = 1e20;
+
 /// [`Brdf::integration_tolerance`] of the nearest-bin lookup. Its f_r is a staircase whose
 /// steps the quadtree's cells cannot follow (nodes are squares of the disk, steps are curves
 /// of constant θh, θd or φd), so integrals converge slowly: on the benches' measured material
@@ -227,7 +235,17 @@ impl MerlData {
             if v < 0.0 {
                 unmeasured += 1;
             } else {
-                values[bin][channel] = (v * MERL_SCALE[channel]) as f32;
+                // A finite value whose f_r no measurement gives: past f32's range it was an
+                // infinite f_r (every quadtree failed with "NaN expected trials"), and near
+                // it the cosine and analytic samplers' weights f·π overflowed to NaN means.
+                let f = v * MERL_SCALE[channel];
+                if f > MERL_MAX_F {
+                    return Err(err(DataFault::TooLarge {
+                        channel: channel as u8,
+                        bin: bin as u32,
+                    }));
+                }
+                values[bin][channel] = f as f32;
             }
         }
         Ok(Self { values, unmeasured })
