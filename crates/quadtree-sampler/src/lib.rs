@@ -120,7 +120,7 @@ pub use sampler::{
 };
 pub use table::{DEFAULT_TABLE_RES, TableSampler};
 pub use tree::{
-    LAST_RETRY_TOLERANCE, LEAF, Node, Quadtree, RETRY_TOLERANCE, TARGET_TOLERANCE, TreeStats,
-    albedo_of_volume, target_limit,
+    FLOOR_SLACK, LAST_RETRY_TOLERANCE, LEAF, Node, Quadtree, RETRY_TOLERANCE, TARGET_TOLERANCE,
+    TreeStats, albedo_of_volume, target_limit,
 };
 pub use warp::{DEFAULT_MIX, WarpSampler};
