@@ -7,7 +7,7 @@
 mod ggx;
 
 use brdf_validate::glam::Vec3;
-use brdf_validate::{Against, FnSampler, Reason, Settings, SuiteReport, Verdict, check};
+use brdf_validate::{Against, FnSampler, Reason, Sampler, Settings, SuiteReport, Verdict, check};
 use ggx::{Ggx, incident};
 
 fn settings(against: Against) -> Settings {
@@ -159,16 +159,23 @@ fn a_pdf_missing_part_of_the_support_biases_the_mean_weight() {
     assert_eq!(r.verdict(), Verdict::Rejected);
 }
 
-/// Bad settings are typed errors, not panics.
-#[test]
-fn bad_settings_are_errors() {
+/// The exact GGX sampler (α = 0.3) at θi = 40° and its f·cos oracle.
+fn exact_ggx() -> (impl Sampler, impl Fn(Vec3) -> f64 + Sync + Copy) {
     let g = Ggx {
         alpha: 0.3,
         f0: 0.04,
     };
     let wi = incident(40.0);
-    let sampler = FnSampler::new("ggx", |_, u| g.sample(wi, u), |wo| g.pdf(wi, wo));
-    let fcos = |wo: Vec3| f64::from(g.f_cos(wi, wo));
+    (
+        FnSampler::new("ggx", move |_, u| g.sample(wi, u), move |wo| g.pdf(wi, wo)),
+        move |wo: Vec3| f64::from(g.f_cos(wi, wo)),
+    )
+}
+
+/// Bad settings are typed errors, not panics.
+#[test]
+fn bad_settings_are_errors() {
+    let (sampler, fcos) = exact_ggx();
     for s in [
         Settings {
             samples: 0,
@@ -212,13 +219,7 @@ fn bad_settings_are_errors() {
 /// (an infinite oracle once gave it p = NaN). The sampler itself is exact.
 #[test]
 fn a_non_finite_oracle_is_rejected_without_a_nan() {
-    let g = Ggx {
-        alpha: 0.3,
-        f0: 0.04,
-    };
-    let wi = incident(40.0);
-    let sampler = FnSampler::new("ggx", |_, u| g.sample(wi, u), |wo| g.pdf(wi, wo));
-    let fcos = |wo: Vec3| f64::from(g.f_cos(wi, wo));
+    let (sampler, fcos) = exact_ggx();
     let settings = Settings {
         grids: Settings::both_grids(5),
         samples: 20_000,

@@ -542,19 +542,24 @@ fn declared_length(bytes: &[u8]) -> Result<u64, BakeFileError> {
 }
 
 impl BakedSampler {
-    /// The bake file's bytes (see the module doc of `bake_file`): everything needed to
-    /// sample again without building a tree.
-    #[must_use]
-    pub fn to_bytes(&self) -> Vec<u8> {
+    /// What a bake file of this sampler encodes.
+    fn record(&self) -> Record {
         let (forward, adjoint) = self.tables();
-        let record = Record {
+        Record {
             model: self.brdf().name().to_string(),
             params: param_strings(&**self.brdf()),
             config: ConfigRecord::of(self.config()),
             domain: domain_code(self.grid().domain()),
             forward: tables_record(forward),
             adjoint: adjoint.map(tables_record),
-        };
+        }
+    }
+
+    /// The bake file's bytes (see the module doc of `bake_file`): everything needed to
+    /// sample again without building a tree.
+    #[must_use]
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let record = self.record();
         // Encoding into a Vec cannot fail for these plain types.
         frame(
             BAKE_FORMAT_VERSION,
@@ -948,14 +953,7 @@ mod tests {
         let baked = phong_bake(&["n=1000", "kd=0"], 4);
         let edit = |f: &dyn Fn(&mut StoredShapes, &Slice)| {
             let (forward, _) = baked.tables();
-            let mut record = Record {
-                model: baked.brdf().name().to_string(),
-                params: param_strings(&**baked.brdf()),
-                config: ConfigRecord::of(baked.config()),
-                domain: domain_code(baked.grid().domain()),
-                forward: tables_record(forward),
-                adjoint: None,
-            };
+            let mut record = baked.record();
             let k = forward
                 .slices
                 .iter()
@@ -997,15 +995,7 @@ mod tests {
     fn a_volume_that_is_not_its_leaves_sum_is_refused() {
         let baked = phong_bake(&["n=1000"], 4);
         let edit = |f: &dyn Fn(&mut f64)| {
-            let (forward, _) = baked.tables();
-            let mut record = Record {
-                model: baked.brdf().name().to_string(),
-                params: param_strings(&**baked.brdf()),
-                config: ConfigRecord::of(baked.config()),
-                domain: domain_code(baked.grid().domain()),
-                forward: tables_record(forward),
-                adjoint: None,
-            };
+            let mut record = baked.record();
             f(&mut record.forward.slices[1].tree.volume);
             BakedSampler::from_bytes(&frame(
                 BAKE_FORMAT_VERSION,
