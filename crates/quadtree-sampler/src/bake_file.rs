@@ -1025,6 +1025,43 @@ mod tests {
         }
     }
 
+    /// Split cuts that are not the leaves' shares of the volume, under a valid checksum, are
+    /// a typed error: selection would draw leaves away from the volumes the pdf divides by.
+    /// A cut moved by 100 units (2⁻³¹ each: less than the f32 rounding of the shares can
+    /// move one) still reads; by 2²⁰, or so that a live leaf gets no width, it does not.
+    #[test]
+    fn cuts_that_are_not_the_volumes_shares_are_refused() {
+        let baked = phong_bake(&["n=1000"], 4);
+        let edit = |f: &dyn Fn(&mut Vec<[u32; 4]>)| {
+            let mut record = baked.record();
+            f(&mut record.forward.slices[2].tree.packed);
+            BakedSampler::from_bytes(&frame(
+                BAKE_FORMAT_VERSION,
+                &postcard::to_allocvec(&record).unwrap(),
+            ))
+        };
+        let root = baked.tables().0.slices[2].tree.raw_nodes()[0];
+        assert!(root[1] < root[2] && root[2] - root[1] > 1 << 21, "{root:?}");
+        assert!(edit(&|_| {}).is_ok());
+        assert!(edit(&|t| t[0][1] += 100).is_ok());
+        let refused = |r: Result<BakedSampler, BakeFileError>| {
+            assert!(
+                matches!(
+                    r,
+                    Err(BakeFileError::Tree {
+                        index: 2,
+                        fault: "a leaf whose selection interval is not its share of the volume"
+                            | "a leaf with volume that selection cannot reach"
+                    })
+                ),
+                "{:?}",
+                r.as_ref().err()
+            );
+        };
+        refused(edit(&|t| t[0][1] += 1 << 20));
+        refused(edit(&|t| t[0][2] = t[0][1]));
+    }
+
     /// A version 5 file (the trees without nearest-tree cells, as this library wrote them
     /// before) still reads: the same trees, and a sampler that blends every cell as it did,
     /// bit for bit the pdf of this bake with its cells cleared.

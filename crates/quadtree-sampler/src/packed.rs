@@ -338,6 +338,46 @@ fn child_starts(src: &[Node]) -> Vec<[u32; 3]> {
         .collect()
 }
 
+/// That each leaf's interval of the unit interval (`span`, from the stored cuts) is where
+/// [`child_starts`] puts it: its start within 260 units (2⁻³¹ each) of the cumulative v1
+/// share before it, computed here from the stored f32 v1 (whose rounding, 2⁻²⁴ of each
+/// share, moves a cut by at most 256 units), plus what the minimum width of the tiny live
+/// leaves before it may have pushed it along (1 − share for each leaf of share under one
+/// unit); a live leaf at least one unit wide, a dead one none. The rejection-mode pdf is
+/// f·cos/V: a cut moved further (a writer's bug under a valid checksum) would select the
+/// leaves away from their volumes, samples no longer following the pdf reported for them.
+/// `total` is the sum of the live leaves' f32 v1 (> 0).
+fn check_cuts(raw: &[[u32; 4]], span: &[(u32, u32)], total: f64) -> Result<(), &'static str> {
+    let one = f64::from(ONE);
+    let (mut cum, mut pushed) = (0.0f64, 0.0f64);
+    // Tree order, child 0 first: the leaves' intervals follow one another.
+    let mut stack = alloc::vec![0usize];
+    while let Some(i) = stack.pop() {
+        let w = raw[i];
+        if w[0] & LEAF_FLAG == 0 {
+            let c = w[0] as usize;
+            stack.extend([c + 3, c + 2, c + 1, c]);
+            continue;
+        }
+        let (start, end) = span[i];
+        let ideal = brdf_core::math::round(cum / total * one);
+        if (f64::from(start) - ideal).abs() > 260.0 + pushed {
+            return Err("a leaf whose selection interval is not its share of the volume");
+        }
+        if w[0] & LIVE_FLAG != 0 {
+            let v1 = f64::from(f32::from_bits(w[2]));
+            cum += v1;
+            pushed += (1.0 - v1 / total * one).max(0.0);
+            if end == start {
+                return Err("a leaf with volume that selection cannot reach");
+            }
+        } else if end != start {
+            return Err("a leaf without volume that selection can reach");
+        }
+    }
+    Ok(())
+}
+
 impl PackedTree {
     /// Packs a built tree (same node order).
     #[must_use]
@@ -759,6 +799,9 @@ impl PackedTree {
         if (live == 0) != (volume == 0.0) || (sum - volume).abs() > slack {
             return Err("a tree volume that is not the sum of its leaves' v1");
         }
+        if sum > 0.0 {
+            check_cuts(raw, &span, sum)?;
+        }
         let nodes = raw
             .iter()
             .map(|w| PackedNode {
@@ -857,9 +900,11 @@ mod tests {
             leaf,
             leaf
         ];
-        deep.extend([leaf; 4]);
+        // (A quarter of the leaf's v1 each, so that the cuts are the volume's shares.)
+        let quarter = (f32::from_bits(leaf[2]) / 4.0).to_bits();
+        deep.extend([[leaf[0], leaf[1], quarter, leaf[3]]; 4]);
         assert!(read(&deep).is_err_and(|e| e == "a polar leaf below the root's children"));
-        let square = [leaf[0] & !CHART_BITS, leaf[1], leaf[2], leaf[3]];
+        let square = [leaf[0] & !CHART_BITS, leaf[1], quarter, leaf[3]];
         deep[5..9].fill(square);
         assert!(read(&deep).is_ok());
         // A child's cuts outside its own interval (which would make its children's
