@@ -30,23 +30,15 @@ pub struct BrdfSample {
 
 /// f·cos/pdf. In f32 first; where that overflows (a subnormal pdf: cos/pdf past f32's
 /// range while f·cos/pdf is not, as Strauss at transparency 1 gave near the horizon, f and
-/// pdf both about 10⁻⁴³), again in f64, out of line. Infinite only where the weight itself
-/// is.
+/// pdf both about 10⁻⁴³), again in f64. Infinite only where the weight itself is.
 #[inline(always)]
 fn weight_of(f: Vec3, cos: f32, pdf: f32) -> Vec3 {
     let w = f * (cos / pdf);
     if w.is_finite() {
         w
     } else {
-        weight_in_f64(f, cos, pdf)
+        (f.as_dvec3() * (f64::from(cos) / f64::from(pdf))).as_vec3()
     }
-}
-
-/// [`weight_of`]'s rare case, kept off every sample's path.
-#[cold]
-#[inline(never)]
-fn weight_in_f64(f: Vec3, cos: f32, pdf: f32) -> Vec3 {
-    (f.as_dvec3() * (f64::from(cos) / f64::from(pdf))).as_vec3()
 }
 
 impl BrdfSample {
@@ -59,12 +51,9 @@ impl BrdfSample {
         if !(wo.z > 0.0 && pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
-        let mut weight = f * (wo.z / pdf);
+        let weight = weight_of(f, wo.z, pdf);
         if !weight.is_finite() {
-            weight = weight_in_f64(f, wo.z, pdf);
-            if !weight.is_finite() {
-                return None;
-            }
+            return None;
         }
         Some(Self {
             wo,
