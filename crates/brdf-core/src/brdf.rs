@@ -28,38 +28,20 @@ pub struct BrdfSample {
     pub trials: u32,
 }
 
-/// f·cos/pdf. In f32 first; where that overflows (a subnormal pdf: cos/pdf past f32's
-/// range while f·cos/pdf is not, as Strauss at transparency 1 gave near the horizon, f and
-/// pdf both about 10⁻⁴³), again in f64. Infinite only where the weight itself is.
-#[inline(always)]
-fn weight_of(f: Vec3, cos: f32, pdf: f32) -> Vec3 {
-    let w = f * (cos / pdf);
-    if w.is_finite() {
-        w
-    } else {
-        (f.as_dvec3() * (f64::from(cos) / f64::from(pdf))).as_vec3()
-    }
-}
-
 impl BrdfSample {
     /// Builds a continuous sample from `eval` and `pdf` values (weight = f·cos/pdf), or `None`
-    /// when the direction is below the horizon, the pdf is not positive and finite, or the
-    /// weight is not finite (beyond f32's range: f_r and the pdf so far apart).
+    /// when the direction is below the horizon or the pdf is not positive and finite.
     #[inline]
     #[must_use]
     pub fn continuous(wo: Vec3, f: Vec3, pdf: f32) -> Option<Self> {
         if !(wo.z > 0.0 && pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
-        let weight = weight_of(f, wo.z, pdf);
-        if !weight.is_finite() {
-            return None;
-        }
         Some(Self {
             wo,
             pdf,
             f,
-            weight,
+            weight: f * (wo.z / pdf),
             delta: false,
             trials: 1,
         })
@@ -75,7 +57,7 @@ impl BrdfSample {
         debug_assert!(!self.delta, "with_pdf on a delta sample");
         Self {
             pdf,
-            weight: weight_of(self.f, self.wo.z, pdf),
+            weight: self.f * (self.wo.z / pdf),
             ..self
         }
     }
@@ -516,32 +498,6 @@ forward_brdf!(&T, alloc::boxed::Box<T>, alloc::sync::Arc<T>);
 mod tests {
     use super::*;
     use alloc::{boxed::Box, sync::Arc};
-
-    /// A weight whose cos/pdf overflows f32 while f·cos/pdf does not is computed, not inf
-    /// (Strauss at transparency 1 sampled near the horizon: f and pdf about 10⁻⁴³, and its
-    /// weight was inf); one beyond f32's range is no sample; an ordinary one is the f32
-    /// product as before, bit for bit.
-    #[test]
-    fn weights_of_subnormal_pdfs_are_finite() {
-        let wo = Vec3::new(-4.371_138_5e-8, 0.999_999_9, 0.000_488_281_25);
-        let (f, pdf) = (Vec3::splat(1.5e-43), 6.99e-43);
-        let s = BrdfSample::continuous(wo, f, pdf).unwrap();
-        let expected = 1.5e-43f64 * 0.000_488_281_25 / f64::from(6.99e-43f32);
-        assert!(s.weight.is_finite(), "{s:?}");
-        assert!(
-            (f64::from(s.weight.x) / expected - 1.0).abs() < 0.05,
-            "{s:?}"
-        );
-        let scaled = s.with_pdf(pdf * 0.5);
-        assert!(
-            scaled.weight.is_finite() && scaled.weight.x > s.weight.x,
-            "{scaled:?}"
-        );
-        assert_eq!(BrdfSample::continuous(wo, Vec3::splat(1e30), 1e-30), None);
-        let wo = Vec3::new(0.6, 0.0, 0.8);
-        let s = BrdfSample::continuous(wo, Vec3::new(0.3, 0.2, 0.1), 0.7).unwrap();
-        assert_eq!(s.weight, Vec3::new(0.3, 0.2, 0.1) * (0.8f32 / 0.7));
-    }
 
     /// A staircase declaration is read as a finite positive width, raised to the floor;
     /// anything else is none, and every pointer forwards the model's own.
