@@ -1363,3 +1363,59 @@ mod grazing {
         }
     }
 }
+
+/// Uniforms outside [0, 1), or NaN, never make an analytic sample with a non-finite
+/// weight or pdf: every model at parameter corners, at grazing incidence, with `uc` and
+/// `u` at and beyond their ends. (`uc = −1` chose Strauss's diffuse lobe at transparency 1,
+/// where it has probability 0, and the weight of a direction near the horizon overflowed
+/// to ∞: f and pdf were about 10⁻⁴³.)
+#[test]
+fn uniforms_out_of_range_give_finite_samples() {
+    let models: [(&str, &[&str]); 9] = [
+        ("strauss", &["transparency=1"]),
+        ("strauss", &["smoothness=0.99", "metalness=1"]),
+        ("schlick", &["r=0.001"]),
+        ("phong", &["ks=0"]),
+        ("phong", &["kd=0", "n=100000"]),
+        ("cook-torrance", &["m=0.001", "kd=1"]),
+        ("blinn-phong", &["kd=0"]),
+        ("lewis-phong", &["kd=0", "ks=1"]),
+        ("htsg", &["sigma0=0.001"]),
+    ];
+    let ends = [
+        -1.0f32,
+        -0.0,
+        0.0,
+        0.5,
+        1.0 - f32::EPSILON / 2.0,
+        1.0,
+        2.0,
+        f32::NAN,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+    ];
+    let wis = [
+        Vec3::new(1.0, 0.0, 1e-7),
+        Vec3::new(0.0, 1.0, 1e-4),
+        Vec3::new(0.0, -1.0, 1e-20),
+        dir(45.0, 30.0),
+    ];
+    for (name, params) in models {
+        let b = build(name, params);
+        for wi in wis {
+            for uc in ends {
+                for ux in ends {
+                    for uy in ends {
+                        let Some(s) = b.sample(wi, uc, Vec2::new(ux, uy)) else {
+                            continue;
+                        };
+                        assert!(
+                            s.weight.is_finite() && s.pdf.is_finite() && s.pdf > 0.0,
+                            "{name} {params:?} wi = {wi}, uc = {uc}, u = ({ux}, {uy}): {s:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

@@ -57,7 +57,18 @@ pub(crate) fn sample_mixture<B: Brdf + ?Sized>(
     if !above_horizon(wi) {
         return None;
     }
-    let wo = if f64::from(uc) < p_diffuse {
+    // A uniform outside [0, 1), or NaN, is read as the nearest value inside it: below 0 it
+    // chose the diffuse lobe where that has probability 0 (Strauss at transparency 1,
+    // Schlick), whose directions the mixture's pdf barely covers: f and pdf both about
+    // 10⁻⁴³ near the horizon, and a weight f·(cos/pdf) that overflowed to ∞. Valid
+    // uniforms choose as before.
+    let c = f64::from(uc);
+    let c = if c >= 0.0 {
+        c.min(1.0 - f64::EPSILON)
+    } else {
+        0.0
+    };
+    let wo = if c < p_diffuse {
         sample_cosine_hemisphere(u)
     } else {
         lobe(u)?
