@@ -644,7 +644,9 @@ impl Quadtree {
 
     /// SPEC §3's target mode: split, in batches, the live leaves with the largest reducible
     /// wasted volume (box/safety − v1: the safety factor's share cannot be split away) until
-    /// E\[T\] ≤ [`target_limit`] of the target, the budget is spent, or no leaf can split. A
+    /// E\[T\] ≤ [`target_limit`] of the target (where no splitting can reach that, within
+    /// [`FLOOR_SLACK`] of the least E\[T\] splitting can), the budget is spent, or no leaf
+    /// can split. A
     /// batch holds no more leaves than the excess volume needs (their wastes × safety,
     /// summed): split before the last, they cannot have brought E\[T\] to the target (up to
     /// the children's v1 moving within the integration tolerance), so a batch evaluates in
