@@ -859,16 +859,13 @@ mod tests {
         assert_eq!(packed.nodes.len(), 1);
         assert_eq!(packed.nodes[0].chart(), Chart::Polar);
         let raw = packed.raw_nodes();
-        // (The trees made below repeat the leaf: their volume is their leaves' sum.)
+        // (The trees made below repeat the leaf: each read with its leaves' sum as volume.)
         let read = |raw: &[[u32; 4]]| {
-            let v = if raw.len() == 1 {
-                packed.volume
-            } else {
-                raw.iter()
-                    .filter(|w| w[0] & LEAF_FLAG != 0)
-                    .map(|w| f64::from(f32::from_bits(w[2])))
-                    .sum()
-            };
+            let v = raw
+                .iter()
+                .filter(|w| w[0] & LEAF_FLAG != 0)
+                .map(|w| f64::from(f32::from_bits(w[2])))
+                .sum();
             PackedTree::from_raw(raw, DiskMap::Orthographic, v, false)
         };
         assert_eq!(read(&raw).unwrap().nodes, packed.nodes);

@@ -674,22 +674,44 @@ impl Quadtree {
         }
         const BATCH: usize = 16;
         let cfg = ctx.config;
-        let (mut boxes, mut v1s, mut floor) = (0.0, 0.0, 0.0);
+        /// The live leaves' box volumes and v1, and `floor`: each counted at the least box
+        /// splitting can leave it (see the loop below).
+        #[derive(Clone, Copy, Default)]
+        struct Sums {
+            boxes: f64,
+            v1s: f64,
+            floor: f64,
+        }
+        impl Sums {
+            /// A live leaf in: into the heap too if it may still split.
+            fn admit(&mut self, n: &Node, i: u32, cfg: &BuildConfig, heap: &mut BinaryHeap<Waste>) {
+                self.boxes += n.box_volume();
+                self.v1s += n.v1;
+                let waste = n.reducible_waste(cfg.bound_safety);
+                if n.depth < cfg.max_depth && waste > 0.0 {
+                    heap.push(Waste(waste, i));
+                    self.floor += cfg.bound_safety * n.v1;
+                } else {
+                    self.floor += n.box_volume();
+                }
+            }
+
+            /// A leaf taken from the heap to split out.
+            fn remove(&mut self, n: &Node, safety: f64) {
+                self.boxes -= n.box_volume();
+                self.v1s -= n.v1;
+                self.floor -= safety * n.v1;
+            }
+        }
+        let mut sums = Sums::default();
         let mut heap = BinaryHeap::new();
         for (i, n) in self.nodes.iter().enumerate() {
             if n.is_leaf() && n.v1 > 0.0 {
-                boxes += n.box_volume();
-                v1s += n.v1;
-                if n.depth < cfg.max_depth && n.reducible_waste(cfg.bound_safety) > 0.0 {
-                    heap.push(Waste(n.reducible_waste(cfg.bound_safety), i as u32));
-                    floor += cfg.bound_safety * n.v1;
-                } else {
-                    floor += n.box_volume();
-                }
+                sums.admit(n, i as u32, &cfg, &mut heap);
             }
         }
         let target = target_limit(target);
-        while v1s > 0.0 {
+        while sums.v1s > 0.0 {
             // `floor` is the least box volume splitting can reach: each leaf that may still
             // split at safety × its v1 (its children's boxes can do no better), the others
             // at their boxes. Where that is over the target, no number of splits reaches it
@@ -698,6 +720,7 @@ impl Quadtree {
             // plus FLOOR_SLACK. (Cook–Torrance m = 0.001, kd = 1 at cos θi = 10⁻⁴ had E[T]
             // 3.059 after the breadth-first pass over a floor of 3.033, and then split its
             // leaves until the node budget, 10⁶ nodes and 50 s later, to reach 3.033.)
+            let Sums { boxes, v1s, floor } = sums;
             let goal = if floor > target * v1s {
                 FLOOR_SLACK * floor / v1s
             } else {
@@ -731,22 +754,12 @@ impl Quadtree {
                 break;
             }
             for &i in &batch {
-                let n = &self.nodes[i as usize];
-                boxes -= n.box_volume();
-                v1s -= n.v1;
-                floor -= cfg.bound_safety * n.v1;
+                sums.remove(&self.nodes[i as usize], cfg.bound_safety);
             }
             for c in self.split(ctx, &batch, pending, None) {
                 let n = &self.nodes[c as usize];
                 if n.v1 > 0.0 {
-                    boxes += n.box_volume();
-                    v1s += n.v1;
-                    if n.depth < cfg.max_depth && n.reducible_waste(cfg.bound_safety) > 0.0 {
-                        heap.push(Waste(n.reducible_waste(cfg.bound_safety), c));
-                        floor += cfg.bound_safety * n.v1;
-                    } else {
-                        floor += n.box_volume();
-                    }
+                    sums.admit(n, c, &cfg, &mut heap);
                 }
             }
         }

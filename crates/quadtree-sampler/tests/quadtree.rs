@@ -227,8 +227,7 @@ fn a_target_at_the_safety_factor_is_reached_where_the_bounds_are_tight() {
 /// leaves at the depth limit), the build stops within `FLOOR_SLACK` of the least E[T] any
 /// splitting could reach instead of splitting until the node budget: Cook–Torrance
 /// m = 0.001 at cos θi = 10⁻⁴ took 10⁶ nodes and 50 s with kd = 1 (E[T] 3.059 → 3.033) and
-/// 19 365 nodes with kd = 0 (6.438 → 6.437). The tree still samples f·cos: its volume is
-/// the albedo of the same model's own sampler, and no bound is violated.
+/// 19 365 nodes with kd = 0 (6.438 → 6.437). Its samples still violate no bound.
 #[test]
 fn an_unreachable_target_stops_near_its_floor() {
     let wi = Vec3::new(1.0, 0.0, 1e-4).normalize();
