@@ -477,6 +477,8 @@ impl Quadtree {
         // children together (in parallel when enabled). Same tree either way.
         let mut frontier: Vec<u32> = alloc::vec![0];
         let mut total = e.v1;
+        // Whether the node budget stopped the breadth-first pass.
+        let mut cut_short = false;
         while !frontier.is_empty() {
             // Not below the context's estimate: where the root's integration missed a needle
             // (v1 = 0, split for its bound), the first level's total is 0, so its cut-off is
@@ -485,15 +487,18 @@ impl Quadtree {
             // a tree of 381 (Phong n = 10⁵, θi = 45°), 2 s against 0.03 s serial. The pass
             // itself keeps its own total, so the tree is the same.
             speculation.total = total.max(ctx.estimate);
-            let mut split = Vec::new();
-            for &i in &frontier {
-                if tree.nodes[i as usize].seed_rule_splits(cfg, total) {
-                    if tree.nodes.len() + 4 * (split.len() + 1) > budget {
-                        tree.budget_exhausted = true;
-                        break;
-                    }
-                    split.push(i);
-                }
+            let split: Vec<u32> = frontier
+                .iter()
+                .copied()
+                .filter(|&i| tree.nodes[i as usize].seed_rule_splits(cfg, total))
+                .collect();
+            // A level that does not fit in the node budget is not split at all: the whole
+            // budget left goes to the greedy refinement below, most wasteful leaves first,
+            // where it lowers E[T] the most (splitting the level's first nodes in index
+            // order spent it on whichever part of the square came first).
+            if tree.nodes.len() + 4 * split.len() > budget {
+                cut_short = true;
+                break;
             }
             // In chunks, so that the evaluation budget stops a wide level part-way; the
             // children are the same nodes in the same order either way.
@@ -518,9 +523,13 @@ impl Quadtree {
         }
         // The seed's rule promises E[T] ≤ 1/threshold; the waste cut-off above can leave rim
         // leaves with P < threshold, so enforce the promise (and any stricter target).
+        // Where the node budget stopped the pass, the greedy refinement spends all of it
+        // (aiming at E[T]'s floor, the bounds' safety factor), as near the seed's rule as
+        // that many nodes get.
         let target = cfg.target_trials.map_or(1.0 / cfg.split_threshold, |t| {
             t.min(1.0 / cfg.split_threshold)
         });
+        let target = if cut_short { cfg.bound_safety } else { target };
         tree.refine_to_target(ctx, target, &mut pending);
         tree.sum_up();
         ctx.speculated.store(
@@ -734,8 +743,15 @@ impl Quadtree {
             // (at most BATCH). Far from the goal that is a full batch to evaluate in
             // parallel; near it, no split past the goal.
             let excess = boxes - goal * v1s;
+            // As many splits as the node budget still has room for (a batch cut short by
+            // it spends the budget to its last four nodes).
+            let room = (cfg.node_budget as usize).saturating_sub(self.nodes.len()) / 4;
+            if room == 0 || ctx.overspent(self.nodes.len()) {
+                self.budget_exhausted = true;
+                break;
+            }
             let (mut batch, mut removable) = (Vec::with_capacity(BATCH), 0.0);
-            while batch.len() < BATCH && removable < excess {
+            while batch.len() < BATCH.min(room) && removable < excess {
                 match heap.pop() {
                     Some(Waste(w, i)) => {
                         batch.push(i);
@@ -745,12 +761,6 @@ impl Quadtree {
                 }
             }
             if batch.is_empty() {
-                break;
-            }
-            if self.nodes.len() + 4 * batch.len() > cfg.node_budget as usize
-                || ctx.overspent(self.nodes.len())
-            {
-                self.budget_exhausted = true;
                 break;
             }
             for &i in &batch {
