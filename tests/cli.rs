@@ -805,6 +805,83 @@ fn bake_reports_trees_a_budget_stopped() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// `brdf bake --max-bytes`: a bake over the limit holds at most it (its largest trees
+/// pruned, exact still: `test --baked` passes), says so in its JSON (`max_bytes`, the pruned
+/// trees counted as budget-stopped) and on stderr; a limit of 0 or past 2 GiB is refused
+/// (exit 2) before anything is baked.
+#[test]
+fn bake_holds_at_most_max_bytes() {
+    let dir = std::env::temp_dir().join(format!("brdf-cli-bake-bytes-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("ward.bake");
+    let f = file.to_str().unwrap();
+    let bake = |extra: &[&str]| {
+        let mut args = vec![
+            "bake",
+            "--model",
+            "ward",
+            "--param",
+            "alpha_x=0.3",
+            "--param",
+            "alpha_y=0.01",
+            "--param",
+            "kd=0",
+            "--theta-steps",
+            "4",
+            "--phi-steps",
+            "2",
+            "--coverage-samples",
+            "0",
+            "--out",
+            f,
+        ];
+        args.extend_from_slice(extra);
+        brdf(&args, "")
+    };
+    let o = bake(&[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["max_bytes"].as_u64(), Some(16 << 20), "{v}");
+    let free = v["bytes"].as_u64().unwrap();
+    let limit = (free / 2).to_string();
+    let o = bake(&["--max-bytes", &limit]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["max_bytes"].as_u64(), Some(free / 2), "{v}");
+    assert!(v["bytes"].as_u64().unwrap() <= free / 2, "{v}");
+    assert!(v["budget_exhausted_trees"].as_u64().unwrap() > 0, "{v}");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("--max-bytes) stopped"), "{err}");
+    let o = brdf(
+        &[
+            "test",
+            "--baked",
+            f,
+            "--wi",
+            "0.5,0.2,0.6",
+            "--samples",
+            "200000",
+        ],
+        "",
+    );
+    assert!(
+        o.status.success(),
+        "{}{}",
+        stdout(&o),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    for bad in ["0", "3000000000"] {
+        let o = bake(&["--max-bytes", bad]);
+        assert_eq!(o.status.code(), Some(2), "{bad}");
+        assert!(
+            String::from_utf8_lossy(&o.stderr).contains("max_bytes"),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// `brdf bake` checks that its grid covers the material between the trees: the JSON's
 /// `coverage` says how much a baked sample is worth where the mixture is farthest from its
 /// trees, a grid too coarse for the lobe is warned of on stderr (the bake still succeeds:

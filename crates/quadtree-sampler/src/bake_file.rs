@@ -58,9 +58,11 @@ pub const BAKE_MAGIC: [u8; 8] = *b"BRDFBAKE";
 /// versions 6 to 9 read with their nearest-tree cells dropped, so that every cell blends
 /// (exact, and no band is left to the defensive share alone: a snapped Schlick r = 0.01
 /// cell's samples there weighed 10⁶ times their due; rejection mode costs one evaluation
-/// more per query where they snapped). A file of any other version is a typed error
-/// (SPEC §7): bake it again.
-pub const BAKE_FORMAT_VERSION: u32 = 10;
+/// more per query where they snapped). Version 11: version 10's record followed by the
+/// bake's [`BakeConfig::max_bytes`]; older files read as baked with
+/// [`crate::MAX_BAKE_BYTES`] (no limit but the hard one, as they were). A file of any other
+/// version is a typed error (SPEC §7): bake it again.
+pub const BAKE_FORMAT_VERSION: u32 = 11;
 
 /// The oldest format version read: version 5, whose records are version 6's without the
 /// nearest-tree cells (and version 6's are version 7's without the warp's shapes).
@@ -261,6 +263,15 @@ impl<T> Record<T> {
     }
 }
 
+/// A version 11 file's record: version 10's ([`Record`]), then the most bytes the bake
+/// was allowed ([`BakeConfig::max_bytes`]). postcard writes a struct as its fields in order,
+/// so this is version 10's payload followed by one integer.
+#[derive(Serialize, Deserialize)]
+struct RecordV11 {
+    record: Record,
+    max_bytes: u64,
+}
+
 /// A version 6 file's record: version 7's without the warp's shapes.
 type RecordV6 = Record<TablesRecord<SliceRecordV6>>;
 
@@ -335,7 +346,8 @@ impl ConfigRecord {
         }
     }
 
-    fn to_config(&self) -> Result<BakeConfig, BakeFileError> {
+    /// The configuration, with the bake's `max_bytes` (recorded beside it from version 11).
+    fn to_config(&self, max_bytes: u64) -> Result<BakeConfig, BakeFileError> {
         let map = match self.map {
             0 => DiskMap::Orthographic,
             1 => DiskMap::Concentric,
@@ -368,11 +380,16 @@ impl ConfigRecord {
         if !(self.defensive > 0.0 && self.defensive < 1.0) {
             return Err(BakeFileError::Config("defensive share out of (0, 1)"));
         }
+        let max_bytes = usize::try_from(max_bytes)
+            .ok()
+            .filter(|b| (1..=crate::MAX_BAKE_BYTES).contains(b))
+            .ok_or(BakeFileError::Config("max_bytes out of range"))?;
         Ok(BakeConfig {
             build,
             theta_steps: self.theta_steps,
             phi_steps: self.phi_steps,
             defensive: self.defensive,
+            max_bytes,
         })
     }
 }
@@ -493,6 +510,16 @@ fn param_strings(brdf: &dyn Brdf) -> Vec<String> {
         .collect()
 }
 
+/// The payload this library writes ([`BAKE_FORMAT_VERSION`]): `record`, then `max_bytes`.
+fn current_payload(record: Record, max_bytes: usize) -> Vec<u8> {
+    let record = RecordV11 {
+        record,
+        max_bytes: max_bytes as u64,
+    };
+    // Encoding into a Vec cannot fail for these plain types.
+    postcard::to_allocvec(&record).unwrap_or_default()
+}
+
 /// A file's bytes around an encoded `payload`: magic, `version`, length, and the CRC-32.
 fn frame(version: u32, payload: &[u8]) -> Vec<u8> {
     let mut out = Vec::with_capacity(HEADER + payload.len() + TRAILER);
@@ -559,11 +586,9 @@ impl BakedSampler {
     /// sample again without building a tree.
     #[must_use]
     pub fn to_bytes(&self) -> Vec<u8> {
-        let record = self.record();
-        // Encoding into a Vec cannot fail for these plain types.
         frame(
             BAKE_FORMAT_VERSION,
-            &postcard::to_allocvec(&record).unwrap_or_default(),
+            &current_payload(self.record(), self.config().max_bytes),
         )
     }
 
@@ -587,22 +612,37 @@ impl BakedSampler {
         }
         let payload = &bytes[HEADER..body];
         let version = word(bytes, 8, 4)? as u32;
-        let record: Record = match version {
-            5 => postcard::from_bytes::<RecordV5>(payload)
-                .map_err(|_| BakeFileError::Decode)?
-                .upgrade()
-                .upgrade(),
-            6 => postcard::from_bytes::<RecordV6>(payload)
-                .map_err(|_| BakeFileError::Decode)?
-                .upgrade(),
-            _ => postcard::from_bytes(payload).map_err(|_| BakeFileError::Decode)?,
+        // Files before version 11 were baked with no limit but the hard one.
+        let (record, max_bytes): (Record, u64) = match version {
+            5 => (
+                postcard::from_bytes::<RecordV5>(payload)
+                    .map_err(|_| BakeFileError::Decode)?
+                    .upgrade()
+                    .upgrade(),
+                crate::MAX_BAKE_BYTES as u64,
+            ),
+            6 => (
+                postcard::from_bytes::<RecordV6>(payload)
+                    .map_err(|_| BakeFileError::Decode)?
+                    .upgrade(),
+                crate::MAX_BAKE_BYTES as u64,
+            ),
+            7..=10 => (
+                postcard::from_bytes(payload).map_err(|_| BakeFileError::Decode)?,
+                crate::MAX_BAKE_BYTES as u64,
+            ),
+            _ => {
+                let RecordV11 { record, max_bytes } =
+                    postcard::from_bytes(payload).map_err(|_| BakeFileError::Decode)?;
+                (record, max_bytes)
+            }
         };
         let info = registry::find(&record.model).map_err(BakeFileError::Model)?;
         let params = info
             .parse_params(record.params.iter().map(String::as_str))
             .map_err(BakeFileError::Model)?;
         let brdf: Arc<dyn Brdf> = info.build(&params).map_err(BakeFileError::Model)?.into();
-        let config = record.config.to_config()?;
+        let config = record.config.to_config(max_bytes)?;
         let grid = BakeGrid::new(brdf.symmetry(), config.theta_steps, config.phi_steps)
             .map_err(|_| BakeFileError::Config("theta or phi steps out of range"))?;
         if domain_code(grid.domain()) != record.domain {
@@ -965,7 +1005,7 @@ mod tests {
             );
             BakedSampler::from_bytes(&frame(
                 BAKE_FORMAT_VERSION,
-                &postcard::to_allocvec(&record).unwrap(),
+                &current_payload(record, baked.config().max_bytes),
             ))
         };
         assert!(edit(&|_, _| {}).is_ok());
@@ -999,7 +1039,7 @@ mod tests {
             f(&mut record.forward.slices[1].tree.volume);
             BakedSampler::from_bytes(&frame(
                 BAKE_FORMAT_VERSION,
-                &postcard::to_allocvec(&record).unwrap(),
+                &current_payload(record, baked.config().max_bytes),
             ))
         };
         assert!(edit(&|_| {}).is_ok());
@@ -1037,7 +1077,7 @@ mod tests {
             f(&mut record.forward.slices[2].tree.packed);
             BakedSampler::from_bytes(&frame(
                 BAKE_FORMAT_VERSION,
-                &postcard::to_allocvec(&record).unwrap(),
+                &current_payload(record, baked.config().max_bytes),
             ))
         };
         let root = baked.tables().0.slices[2].tree.raw_nodes()[0];

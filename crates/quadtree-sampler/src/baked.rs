@@ -76,6 +76,23 @@ pub const DEFAULT_PHI_STEPS: u16 = 9;
 /// variance at δ ≈ 10⁻⁵ (measured: `examples/bake_grid.rs`).
 pub const DEFAULT_DEFENSIVE: f64 = 1e-6;
 
+/// The memory a bake may hold in [`BakeConfig::default`]: 16 MiB, issue #18's goal for an
+/// anisotropic material at the default grid. The default grids of the bench sets hold
+/// 0.02–7 MiB and are not touched by it; a needle-thin anisotropic lobe (Ward αx = 1,
+/// αy = 0.001: 61 MB) is.
+pub const DEFAULT_BAKE_MAX_BYTES: usize = 16 << 20;
+
+/// Bytes a grid tree holds per node at least: its packed node (16), its warp node (16) and
+/// its warp share (4). A first build within 4× a tree's even share of
+/// [`BakeConfig::max_bytes`] is limited to that many bytes' worth of nodes at this rate.
+const MIN_NODE_BYTES: usize = 36;
+
+/// The least node budget of a tree's first build under [`BakeConfig::max_bytes`] (where the
+/// build's own budget allows it): a limit too small for the grid then shows as trees that
+/// cannot be pruned to fit ([`BakeError::TooLarge`]), not as builds cut off by a budget
+/// nobody set.
+const MIN_FIRST_NODES: u32 = 1024;
+
 /// The most trees one bake may hold (a typed error beyond: a grid of 10⁶ trees is a typo).
 pub const MAX_TREES: usize = 1 << 16;
 
@@ -154,6 +171,14 @@ pub struct BakeConfig {
     pub phi_steps: u16,
     /// The defensive cosine share δ ∈ (0, 1) of the mixture.
     pub defensive: f64,
+    /// The most bytes the bake may hold ([`BakedSampler::bytes`]), in 1 ..=
+    /// [`MAX_BAKE_BYTES`]. Default [`DEFAULT_BAKE_MAX_BYTES`] (16 MiB). A bake whose trees,
+    /// built as `build` asks, would hold more has its largest trees built again with fewer
+    /// nodes, all to one size (the least cut that fits: trees under it are kept as they
+    /// are), each refined greedily by wasted volume within its node budget: exact still,
+    /// with more rejection trials (and a coarser warp proxy) in those trees. A grid whose
+    /// trees cannot fit even so is [`BakeError::TooLarge`].
+    pub max_bytes: usize,
 }
 
 impl Default for BakeConfig {
@@ -166,6 +191,7 @@ impl Default for BakeConfig {
             theta_steps: DEFAULT_THETA_STEPS,
             phi_steps: DEFAULT_PHI_STEPS,
             defensive: DEFAULT_DEFENSIVE,
+            max_bytes: DEFAULT_BAKE_MAX_BYTES,
         }
     }
 }
@@ -195,15 +221,67 @@ pub(crate) struct Slice {
 }
 
 impl Slice {
-    fn build(table: &dyn Brdf, wi: Vec3, config: BuildConfig) -> Result<Self, BuildError> {
+    /// The slice of `table`'s tree at `wi`, and the build's tree itself when the slice holds
+    /// more than `keep_over` bytes (for [`Slice::pruned`]).
+    fn build(
+        table: &dyn Brdf,
+        wi: Vec3,
+        config: BuildConfig,
+        keep_over: usize,
+    ) -> Result<(Self, Option<Quadtree>), BuildError> {
         let q = Quadtree::from_unit(table, wi, config)?;
-        let mut warp = WarpTable::new(&q);
+        let s = Self::of_tree(table, wi, &q);
+        let keep = s.bytes() > keep_over;
+        Ok((s, keep.then_some(q)))
+    }
+
+    /// The slice of a built tree: its packed layout and its warp, the warp's shapes fitted to
+    /// `table` at `wi`.
+    fn of_tree(table: &dyn Brdf, wi: Vec3, q: &Quadtree) -> Self {
+        let mut warp = WarpTable::new(q);
         warp.fit_shapes(
             q.map(),
             |w| f64::from(brdf_core::geometry::luminance(table.eval(wi, w.as_vec3()))),
             true,
         );
-        Ok(Self::new(wi, PackedTree::new(&q), warp))
+        Self::new(wi, PackedTree::new(q), warp)
+    }
+
+    /// The bytes the slice of `q` holds ([`Slice::bytes`]), from its layouts alone: the
+    /// warp's shapes, which need the model, live in its nodes and add nothing.
+    fn bytes_of(q: &Quadtree) -> usize {
+        PackedTree::new(q).stats().bytes + WarpTable::new(q).bytes() + core::mem::size_of::<Self>()
+    }
+
+    /// The slice of `q` (built for `table` at `wi`) pruned ([`Quadtree::prune_to`]) to the
+    /// most nodes whose slice holds at most `cut` bytes (a bisection over the node count:
+    /// pruning collapses the same twigs in the same order whatever count it stops at), or
+    /// `None` where even its root alone holds more, or where what fits would need more than
+    /// [`crate::MAX_USABLE_EXPECTED_TRIALS`] trials a sample.
+    fn pruned(table: &dyn Brdf, wi: Vec3, q: Quadtree, cut: usize) -> Option<Self> {
+        let prune = |k: usize| {
+            let mut p = q.clone();
+            p.prune_to(k);
+            p
+        };
+        // The root alone fits (else nothing does); the whole tree does not.
+        let (mut lo, mut hi) = (1, q.nodes().len());
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            if Self::bytes_of(&prune(mid)) <= cut {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let p = prune(lo);
+        // Pruned past usability: as a build the budget stopped there would be.
+        let e = p.stats().expected_trials;
+        if e.is_nan() || e > crate::MAX_USABLE_EXPECTED_TRIALS {
+            return None;
+        }
+        let s = Self::of_tree(table, wi, &p);
+        (s.bytes() <= cut).then_some(s)
     }
 
     /// A slice from its parts (a bake's, or a file's), with its pdf scales.
@@ -362,6 +440,54 @@ impl DeltaShare {
     }
 }
 
+/// `f` over `jobs`, in parallel with rayon when `parallel` (and the feature) is on: the
+/// same results in the same order either way.
+fn run_jobs<J: Sync, T: Send>(
+    jobs: &[J],
+    parallel: bool,
+    f: impl Fn(&J) -> T + Sync + Send,
+) -> Vec<T> {
+    #[cfg(feature = "rayon")]
+    if parallel {
+        use rayon::prelude::*;
+        return jobs.par_iter().map(f).collect();
+    }
+    let _ = parallel;
+    jobs.iter().map(f).collect()
+}
+
+/// [`run_jobs`] over owned jobs.
+fn run_jobs_owned<J: Send, T: Send>(
+    jobs: Vec<J>,
+    parallel: bool,
+    f: impl Fn(J) -> T + Sync + Send,
+) -> Vec<T> {
+    #[cfg(feature = "rayon")]
+    if parallel {
+        use rayon::prelude::*;
+        return jobs.into_par_iter().map(f).collect();
+    }
+    let _ = parallel;
+    jobs.into_iter().map(f).collect()
+}
+
+/// The largest size c such that the sizes cut to c, Σ min(b, c), fit in `room` (for sizes
+/// whose sum is over it; at least ⌊room / n⌋, and below the largest size).
+fn water_level(sizes: &[usize], room: usize) -> usize {
+    let mut sorted = sizes.to_vec();
+    sorted.sort_unstable();
+    let n = sorted.len();
+    let mut below = 0usize;
+    for (i, &b) in sorted.iter().enumerate() {
+        // The sizes before i kept whole, this one and every later one cut to b.
+        if below + b * (n - i) > room {
+            return (room - below) / (n - i);
+        }
+        below += b;
+    }
+    sorted.last().copied().unwrap_or(0)
+}
+
 impl BakedSampler {
     /// Bakes `brdf` (any model with a continuous part): a tree per grid direction, built in
     /// parallel with rayon when the `rayon` feature is on and `config.build.parallel` is set
@@ -406,51 +532,94 @@ impl BakedSampler {
             jobs.extend((0..grid.len()).map(|k| (true, k)));
         }
         let total = jobs.len();
-        let done = AtomicU64::new(0);
-        // Bytes the finished trees hold. Once past the limit every tree not yet built fails
-        // at once; the error names the whole grid, so it is the same whichever trees finished
-        // first (serial and parallel bakes still agree).
-        let held = AtomicU64::new(0);
+        if !(1..=MAX_BAKE_BYTES).contains(&config.max_bytes) {
+            return Err(BakeError::MaxBytes(config.max_bytes));
+        }
+        // What the trees may hold: the configured bytes less the sampler's own struct.
+        let room = config
+            .max_bytes
+            .min(max_bytes)
+            .saturating_sub(core::mem::size_of::<Self>());
         let too_large = BakeError::TooLarge {
             trees: total,
-            limit: max_bytes,
+            limit: config.max_bytes.min(max_bytes),
+        };
+        // The first build of each tree: within 4× its even share of the room (at the least
+        // bytes a node can take, and never under MIN_FIRST_NODES), so that a needle lobe's
+        // trees stop early rather than grow to the node budget and be pruned from there.
+        let share = room / total.max(1);
+        let first = BuildConfig {
+            node_budget: config.build.node_budget.min(
+                u32::try_from(4 * share / MIN_NODE_BYTES)
+                    .unwrap_or(u32::MAX)
+                    .max(MIN_FIRST_NODES),
+            ),
+            ..config.build
+        };
+        let done = AtomicU64::new(0);
+        // Bytes the finished trees hold. Once past the hard limit every tree not yet built
+        // fails at once; the error names the whole grid, so it is the same whichever trees
+        // finished first (serial and parallel bakes still agree).
+        let held = AtomicU64::new(0);
+        let hard_limit = BakeError::TooLarge {
+            trees: total,
+            limit: MAX_BAKE_BYTES.min(max_bytes),
+        };
+        let model_of = |adj: bool| -> &dyn Brdf { if adj { &adjoint_model } else { &*brdf } };
+        let grid_ref = &grid;
+        let tree_error = |k: usize| {
+            move |source| {
+                let (theta_deg, phi_deg) = grid_ref.angles_deg(k);
+                BakeError::Tree {
+                    theta_deg,
+                    phi_deg,
+                    source,
+                }
+            }
         };
         let build = |&(adj, k): &(bool, usize)| {
-            if held.load(Ordering::Relaxed) > max_bytes as u64 {
-                return Err(too_large.clone());
+            if held.load(Ordering::Relaxed) > MAX_BAKE_BYTES.min(max_bytes) as u64 {
+                return Err(hard_limit.clone());
             }
-            let table: &dyn Brdf = if adj { &adjoint_model } else { &*brdf };
-            let r = Slice::build(table, grid.direction(k), config.build)
-                .map_err(|source| {
-                    let (theta_deg, phi_deg) = grid.angles_deg(k);
-                    BakeError::Tree {
-                        theta_deg,
-                        phi_deg,
-                        source,
-                    }
-                })
-                .and_then(|s| {
+            // A tree over its even share may be over the cut below: its build is kept.
+            let r = Slice::build(model_of(adj), grid.direction(k), first, share)
+                .map_err(tree_error(k))
+                .and_then(|(s, q)| {
                     let bytes = s.bytes() as u64;
-                    if held.fetch_add(bytes, Ordering::Relaxed) + bytes > max_bytes as u64 {
-                        Err(too_large.clone())
+                    if held.fetch_add(bytes, Ordering::Relaxed) + bytes
+                        > MAX_BAKE_BYTES.min(max_bytes) as u64
+                    {
+                        Err(hard_limit.clone())
                     } else {
-                        Ok(s)
+                        Ok((s, q))
                     }
                 });
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
             progress(d as usize, total);
             r
         };
-        #[cfg(feature = "rayon")]
-        let slices: Vec<Result<Slice, BakeError>> = if config.build.parallel {
-            use rayon::prelude::*;
-            jobs.par_iter().map(build).collect()
-        } else {
-            jobs.iter().map(build).collect()
+        let built = run_jobs(&jobs, config.build.parallel, build)
+            .into_iter()
+            .collect::<Result<Vec<_>, _>>()?;
+        // Over the room: the largest trees are pruned, all to the one size that fits.
+        let bytes: Vec<usize> = built.iter().map(|(s, _)| s.bytes()).collect();
+        let cut = (bytes.iter().sum::<usize>() > room).then(|| water_level(&bytes, room));
+        let fit = |(j, (s, q)): (usize, (Slice, Option<Quadtree>))| match cut {
+            Some(cut) if bytes[j] > cut => {
+                let (adj, k) = jobs[j];
+                // Every tree over the cut is over the even share, so its build was kept.
+                q.and_then(|q| Slice::pruned(model_of(adj), grid.direction(k), q, cut))
+                    .ok_or_else(|| too_large.clone())
+            }
+            _ => Ok(s),
         };
-        #[cfg(not(feature = "rayon"))]
-        let slices: Vec<Result<Slice, BakeError>> = jobs.iter().map(build).collect();
-        let mut slices = slices.into_iter().collect::<Result<Vec<_>, _>>()?;
+        let mut slices = run_jobs_owned(
+            built.into_iter().enumerate().collect(),
+            config.build.parallel,
+            fit,
+        )
+        .into_iter()
+        .collect::<Result<Vec<_>, _>>()?;
         let tables = |slices: Vec<Slice>, adjoint: bool| {
             let eval = |wi: Vec3, w: Vec3| {
                 if adjoint {
@@ -867,6 +1036,24 @@ impl BakedSampler {
 mod tests {
     use super::*;
     use alloc::string::ToString;
+
+    /// The water level is the largest cut whose cut sizes fit: one more byte does not.
+    #[test]
+    fn the_water_level_is_the_largest_cut_that_fits() {
+        let cut_sum = |sizes: &[usize], c: usize| sizes.iter().map(|&b| b.min(c)).sum::<usize>();
+        for (sizes, room) in [
+            (alloc::vec![10, 20, 30, 40], 90),
+            (alloc::vec![10, 20, 30, 40], 60),
+            (alloc::vec![100; 7], 699),
+            (alloc::vec![5, 1000, 7, 3000, 2], 1000),
+            (alloc::vec![50], 49),
+        ] {
+            let c = water_level(&sizes, room);
+            assert!(cut_sum(&sizes, c) <= room, "{sizes:?} {room}: {c}");
+            assert!(cut_sum(&sizes, c + 1) > room, "{sizes:?} {room}: {c}");
+            assert!(c >= room / sizes.len());
+        }
+    }
 
     /// The tabled choice is positive wherever the model's is (so no delta lobe is starved)
     /// and close to it (the tabulation is what it says); a model without a delta part, or

@@ -106,6 +106,8 @@ pub enum BakeError {
     },
     /// `defensive` is not in (0, 1).
     Defensive(f64),
+    /// [`crate::BakeConfig::max_bytes`] is 0 or over [`crate::MAX_BAKE_BYTES`].
+    MaxBytes(usize),
     /// The model has no continuous part (the perfect mirror): nothing to bake.
     DeltaModel(&'static str),
     /// A grid tree could not be built.
@@ -137,10 +139,15 @@ impl fmt::Display for BakeError {
             }
             Self::TooLarge { trees, limit } => write!(
                 f,
-                "the grid's {trees} trees hold more than the {:.1} MiB a bake may: use fewer θ or φ steps, or a smaller node budget",
+                "the grid's {trees} trees cannot be held in the {:.1} MiB this bake may hold: use fewer θ or φ steps, a smaller node budget, or more bytes (max_bytes, at most 2 GiB)",
                 *limit as f64 / (1u64 << 20) as f64
             ),
             Self::Defensive(d) => write!(f, "defensive share = {d} must be in (0, 1)"),
+            Self::MaxBytes(b) => write!(
+                f,
+                "max_bytes = {b} must be between 1 and {} (2 GiB)",
+                crate::MAX_BAKE_BYTES
+            ),
             Self::DeltaModel(m) => write!(
                 f,
                 "model `{m}` is a Dirac delta: it has no continuous part to bake (sample it analytically)"

@@ -785,6 +785,99 @@ impl Quadtree {
         }
     }
 
+    /// Collapses subtrees back into leaves until the tree has at most `max_nodes` nodes (at
+    /// least the root), each time the inner node whose four children are all leaves and
+    /// whose own box adds the least to the live leaves' box volume (so to E\[T\]); ties by
+    /// lower index, so the result is fixed. A collapsed node samples with the proposal and
+    /// bound its own evaluation found (kept for that), its v1 the sum of its children's:
+    /// exact, with more trials. Marks the tree [`Quadtree::budget_exhausted`] where it
+    /// removed anything; returns whether it did. What a bake over its memory does with its
+    /// largest trees, instead of building them again with a smaller budget (which costs
+    /// nearly the whole build again: most of a needle lobe's build is its first levels).
+    pub(crate) fn prune_to(&mut self, max_nodes: usize) -> bool {
+        let n = self.nodes.len();
+        if n <= max_nodes.max(1) {
+            return false;
+        }
+        let live_box = |node: &Node| {
+            if node.v1 > 0.0 {
+                node.box_volume()
+            } else {
+                0.0
+            }
+        };
+        let mut parent = alloc::vec![u32::MAX; n];
+        for (i, node) in self.nodes.iter().enumerate() {
+            if !node.is_leaf() {
+                let c = node.first_child as usize;
+                parent[c..c + 4].fill(i as u32);
+            }
+        }
+        // (added box volume, index), smallest first.
+        #[derive(PartialEq)]
+        struct Twig(f64, u32);
+        impl Eq for Twig {}
+        impl PartialOrd for Twig {
+            fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+                Some(self.cmp(o))
+            }
+        }
+        impl Ord for Twig {
+            fn cmp(&self, o: &Self) -> Ordering {
+                o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
+            }
+        }
+        let nodes = &mut self.nodes;
+        let twig = |nodes: &[Node], i: usize| {
+            let c = nodes[i].first_child as usize;
+            (!nodes[i].is_leaf() && nodes[c..c + 4].iter().all(Node::is_leaf)).then(|| {
+                let children: f64 = nodes[c..c + 4].iter().map(live_box).sum();
+                Twig(live_box(&nodes[i]) - children, i as u32)
+            })
+        };
+        let mut heap: BinaryHeap<Twig> = (0..n).filter_map(|i| twig(nodes, i)).collect();
+        let mut removed = alloc::vec![false; n];
+        let mut count = n;
+        while count > max_nodes.max(1) {
+            let Some(Twig(_, i)) = heap.pop() else {
+                break;
+            };
+            let i = i as usize;
+            let c = nodes[i].first_child as usize;
+            removed[c..c + 4].fill(true);
+            nodes[i].first_child = LEAF;
+            count -= 4;
+            if let Some(p) = parent.get(i).copied().filter(|&p| p != u32::MAX)
+                && let Some(t) = twig(nodes, p as usize)
+            {
+                heap.push(t);
+            }
+        }
+        // Compact: the kept nodes in their order (a collapsed node's four children went
+        // together, so every kept group of four stays contiguous, after its parent).
+        let mut index = alloc::vec![u32::MAX; n];
+        let mut next = 0u32;
+        for i in 0..n {
+            if !removed[i] {
+                index[i] = next;
+                next += 1;
+            }
+        }
+        let mut kept = Vec::with_capacity(count);
+        for (i, node) in nodes.iter().enumerate() {
+            if !removed[i] {
+                let mut node = *node;
+                if !node.is_leaf() {
+                    node.first_child = index[node.first_child as usize];
+                }
+                kept.push(node);
+            }
+        }
+        self.nodes = kept;
+        self.budget_exhausted = true;
+        true
+    }
+
     /// The arena, root first.
     #[must_use]
     pub fn nodes(&self) -> &[Node] {
@@ -870,6 +963,101 @@ mod tests {
     #[test]
     fn a_build_node_is_88_bytes() {
         assert_eq!(core::mem::size_of::<Node>(), 88);
+    }
+
+    /// Pruning keeps a tree: at most the nodes asked for, children in groups of four after
+    /// their parents, every node's box and bound its own, the live leaves' volume the same
+    /// (to rounding); E[T] grows as nodes go, and the cheapest collapse goes first (the
+    /// whole of one twig's box added, nothing else). Down to the root alone; a tree already
+    /// small enough is untouched.
+    #[test]
+    fn pruning_keeps_a_valid_tree_and_grows_e_t_least_first() {
+        let brdf = brdf_core::registry::create("phong", ["n=1000", "kd=0.1"]).unwrap();
+        let wi = Vec3::new(0.6, 0.0, 0.8);
+        let full = Quadtree::new(&*brdf, wi, BuildConfig::default()).unwrap();
+        let n = full.nodes().len();
+        assert!(n > 100, "{n}");
+        let live = |q: &Quadtree| -> f64 {
+            q.leaves()
+                .filter(|(_, l)| l.v1 > 0.0)
+                .map(|(_, l)| l.v1)
+                .sum()
+        };
+        let mut untouched = full.clone();
+        assert!(!untouched.prune_to(n));
+        assert_eq!(untouched, full);
+        let mut last = full.stats().expected_trials;
+        for keep in [n - 4, 3 * n / 4, n / 2, n / 4, 5, 1] {
+            let mut q = full.clone();
+            assert!(q.prune_to(keep));
+            let nodes = q.nodes();
+            assert!(nodes.len() <= keep.max(1) && nodes.len() + 4 > keep.max(1));
+            assert!(q.budget_exhausted());
+            for (i, node) in nodes.iter().enumerate() {
+                if node.is_leaf() {
+                    continue;
+                }
+                let c = node.first_child as usize;
+                assert!(c > i && c + 4 <= nodes.len());
+                for (k, child) in nodes[c..c + 4].iter().enumerate() {
+                    assert_eq!(child.depth, node.depth + 1);
+                    assert_eq!(child.column, 2 * node.column + (k % 2) as u32);
+                    assert_eq!(child.row, 2 * node.row + (k / 2) as u32);
+                }
+                // The same node as in the full tree (its own evaluation kept).
+                assert!(
+                    full.nodes()
+                        .iter()
+                        .any(|f| (f.depth, f.column, f.row, f.bound.to_bits())
+                            == (node.depth, node.column, node.row, node.bound.to_bits()))
+                );
+            }
+            assert!((live(&q) - live(&full)).abs() <= 1e-12 * live(&full));
+            let e = q.stats().expected_trials;
+            assert!(e >= last, "{keep}: E[T] {e} < {last}");
+            last = e;
+        }
+        assert_eq!(
+            {
+                let mut q = full.clone();
+                q.prune_to(1);
+                q.nodes().len()
+            },
+            1
+        );
+        // One collapse: the twig whose box adds least, and nothing else moves.
+        let mut one = full.clone();
+        one.prune_to(n - 4);
+        let added = |q: &Quadtree| -> f64 {
+            q.leaves()
+                .filter(|(_, l)| l.v1 > 0.0)
+                .map(|(_, l)| l.box_volume())
+                .sum()
+        };
+        let least = full
+            .nodes()
+            .iter()
+            .filter(|p| {
+                !p.is_leaf() && {
+                    let c = p.first_child as usize;
+                    full.nodes()[c..c + 4].iter().all(Node::is_leaf)
+                }
+            })
+            .map(|p| {
+                let c = p.first_child as usize;
+                let kids: f64 = full.nodes()[c..c + 4]
+                    .iter()
+                    .filter(|k| k.v1 > 0.0)
+                    .map(Node::box_volume)
+                    .sum();
+                (if p.v1 > 0.0 { p.box_volume() } else { 0.0 }) - kids
+            })
+            .fold(f64::INFINITY, f64::min);
+        let grew = added(&one) - added(&full);
+        assert!(
+            (grew - least).abs() <= 1e-12 * added(&full),
+            "{grew} vs {least}"
+        );
     }
 
     /// Lobes narrower than the root's integration points: Phong n = 10⁵ (a needle) and a

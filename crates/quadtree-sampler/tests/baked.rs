@@ -1157,3 +1157,111 @@ fn rim_leaves_follow_a_lobe_that_grows_toward_the_horizon() {
         );
     }
 }
+
+/// A bake over its memory limit (`BakeConfig::max_bytes`) holds at most that: its largest
+/// trees are pruned, all to one size, and every other tree is kept bit for bit (same E[T]);
+/// serial and parallel bakes are the same bytes; the file keeps the limit; and the pruned
+/// sampler is still exact: each sample's pdf is `pdf()`, χ² against its own pdf at off-grid
+/// wi in both modes (family-wise α = 0.01), and its mean weight is the albedo within 4
+/// standard errors. A limit of 0 or past 2 GiB, and one no tree fits in, are typed errors.
+#[test]
+fn a_bake_over_its_memory_limit_prunes_its_largest_trees() {
+    let b = model("ward", &["alpha_x=0.3", "alpha_y=0.01", "kd=0"]);
+    let free = BakedSampler::new(b.clone(), small()).unwrap();
+    let limit = free.bytes() * 8 / 10;
+    let config = BakeConfig {
+        max_bytes: limit,
+        ..small()
+    };
+    let capped = BakedSampler::new(b.clone(), config).unwrap();
+    println!(
+        "free {} bytes, E[T] ≤ {:.3}; capped {} of {limit} bytes, E[T] ≤ {:.3}, {} trees pruned",
+        free.bytes(),
+        free.max_expected_trials(),
+        capped.bytes(),
+        capped.max_expected_trials(),
+        capped.budget_stopped_trees()
+    );
+    assert!(capped.bytes() <= limit);
+    assert_eq!(capped.trees(), free.trees());
+    let (before, after) = (free.expected_trials(), capped.expected_trials());
+    let kept = before.iter().zip(&after).filter(|(a, b)| a == b).count();
+    let pruned = before.iter().zip(&after).filter(|(a, b)| b > a).count();
+    assert_eq!(kept + pruned, before.len(), "{before:?} {after:?}");
+    assert!(kept > 0 && pruned > 0, "kept {kept}, pruned {pruned}");
+    assert_eq!(capped.budget_stopped_trees(), pruned);
+    // Serial == parallel, and the file keeps the limit.
+    let mut serial = config;
+    serial.build.parallel = false;
+    let bytes = capped.to_bytes();
+    assert!(BakedSampler::new(b.clone(), serial).unwrap().to_bytes() == bytes);
+    let back = BakedSampler::from_bytes(&bytes).unwrap();
+    assert_eq!(back.config().max_bytes, limit);
+    assert!(back.to_bytes() == bytes);
+    // Exact still.
+    let wis = [dir(52.3, 37.0), dir(80.0, 200.0)];
+    let alpha = sidak(0.01, 2 * wis.len());
+    let grid = CellGrid::Polar {
+        rings: 16,
+        sectors: 33,
+    };
+    let mut capped = capped;
+    for (k, &wi) in wis.iter().enumerate() {
+        let v = Validation::new(&*b, wi, grid, 1e-7).unwrap();
+        let albedo = f64::from(luminance(directional_albedo(&*b, wi, 96, 6).as_vec3()));
+        for (m, mode) in [BakedMode::Rejection, BakedMode::Warp]
+            .into_iter()
+            .enumerate()
+        {
+            capped.set_mode(mode);
+            let at = capped.at(wi).unwrap();
+            let seed = 40 + 2 * k as u64 + m as u64;
+            let r = v.test_chunked(
+                &at,
+                500_000,
+                |c| Pcg64::seed_from_u64(seed * 100 + c),
+                alpha,
+            );
+            let c = r.chi2_own.as_ref().unwrap();
+            println!(
+                "{mode:?} wi {wi}: own χ² {:.1} dof {} p {:.4}",
+                c.statistic, c.dof, c.p_value
+            );
+            assert!(
+                r.passed_own(),
+                "{mode:?} {wi}: {:?}",
+                r.rejections(brdf_validate::Against::OwnPdf)
+            );
+            let (mean, se) = mean_weight(&at, 1_000_000, seed);
+            assert!(
+                (mean - albedo).abs() <= 4.0 * se,
+                "{mode:?} {wi}: {mean} ± {se} vs {albedo}"
+            );
+            let mut rng = Pcg64::seed_from_u64(seed);
+            for _ in 0..2000 {
+                let (uc, u) = (
+                    uniform_f32(&mut rng),
+                    Vec2::new(uniform_f32(&mut rng), uniform_f32(&mut rng)),
+                );
+                if let Some(s) = capped.sample(wi, uc, u, &mut rng).unwrap() {
+                    assert_eq!(s.pdf, capped.pdf(wi, s.wo).unwrap());
+                }
+            }
+        }
+    }
+    assert_eq!(capped.bound_violations(), 0);
+    // Limits out of range, and one no tree fits in.
+    for bad in [0, quadtree_sampler::MAX_BAKE_BYTES + 1] {
+        let c = BakeConfig {
+            max_bytes: bad,
+            ..small()
+        };
+        assert!(matches!(BakedSampler::new(b.clone(), c), Err(BakeError::MaxBytes(x)) if x == bad));
+    }
+    let c = BakeConfig {
+        max_bytes: 4096,
+        ..small()
+    };
+    let e = BakedSampler::new(b.clone(), c).unwrap_err();
+    assert!(matches!(e, BakeError::TooLarge { limit: 4096, .. }), "{e}");
+}

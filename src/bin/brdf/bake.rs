@@ -5,8 +5,8 @@ use crate::CliError;
 use crate::sample::MapArg;
 use brdf_sampling::quadtree_sampler::{
     BakeConfig, BakedMode, BakedSampler, COVERAGE_LIMIT, Coverage, CoverageConfig,
-    DEFAULT_COVERAGE_SAMPLES, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, MAX_COVERAGE_SAMPLES, Role,
-    target_limit,
+    DEFAULT_BAKE_MAX_BYTES, DEFAULT_COVERAGE_SAMPLES, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS,
+    MAX_COVERAGE_SAMPLES, Role, target_limit,
 };
 use brdf_sampling::{Brdf, DiskMap};
 use serde_json::json;
@@ -35,6 +35,12 @@ pub(crate) struct BakeArgs {
     /// 1.02, the bounds' safety factor, below which the expected trials cannot fall).
     #[arg(long, value_name = "T")]
     target_trials: Option<f64>,
+    /// The most bytes the bake may hold in memory (at most 2 GiB; the JSON's `bytes`): a
+    /// grid whose trees would hold more has its largest trees built again with fewer nodes,
+    /// all to one size, exact still but with more rejection trials a sample (16 MiB by
+    /// default).
+    #[arg(long, value_name = "BYTES", default_value_t = DEFAULT_BAKE_MAX_BYTES)]
+    max_bytes: usize,
     /// Samples drawn at each checked incident direction when checking that the grid covers
     /// the material between its trees (a tree built at the centre of every grid cell, and
     /// halfway from the last row to the horizon, draws them; the JSON's `coverage`, and a
@@ -52,6 +58,7 @@ pub(crate) fn run(
     let mut config = BakeConfig {
         theta_steps: args.theta_steps,
         phi_steps: args.phi_steps,
+        max_bytes: args.max_bytes,
         ..BakeConfig::default()
     };
     config.build.map = match args.map {
@@ -94,7 +101,7 @@ pub(crate) fn run(
         // `brdf sample` says it of one tree.
         let cause = if stopped > 0 {
             format!(
-                "a budget (nodes or f_r evaluations) stopped {stopped} of {} trees",
+                "a budget (nodes, f_r evaluations or --max-bytes) stopped {stopped} of {} trees",
                 baked.trees()
             )
         } else {
@@ -146,6 +153,8 @@ pub(crate) fn run(
         "map": config.build.map.name(),
         "defensive": config.defensive,
         "max_expected_trials": max,
+        // The memory the bake was allowed (`--max-bytes`); `bytes` is at most this.
+        "max_bytes": config.max_bytes,
         // Trees whose node or evaluation budget ran out before the split rule (or
         // --target-trials) was met: exact still, with more trials a sample.
         "budget_exhausted_trees": stopped,
