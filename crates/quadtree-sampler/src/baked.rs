@@ -442,22 +442,7 @@ impl DeltaShare {
 
 /// `f` over `jobs`, in parallel with rayon when `parallel` (and the feature) is on: the
 /// same results in the same order either way.
-fn run_jobs<J: Sync, T: Send>(
-    jobs: &[J],
-    parallel: bool,
-    f: impl Fn(&J) -> T + Sync + Send,
-) -> Vec<T> {
-    #[cfg(feature = "rayon")]
-    if parallel {
-        use rayon::prelude::*;
-        return jobs.par_iter().map(f).collect();
-    }
-    let _ = parallel;
-    jobs.iter().map(f).collect()
-}
-
-/// [`run_jobs`] over owned jobs.
-fn run_jobs_owned<J: Send, T: Send>(
+fn run_jobs<J: Send, T: Send>(
     jobs: Vec<J>,
     parallel: bool,
     f: impl Fn(J) -> T + Sync + Send,
@@ -598,7 +583,7 @@ impl BakedSampler {
             progress(d as usize, total);
             r
         };
-        let built = run_jobs(&jobs, config.build.parallel, build)
+        let built = run_jobs(jobs.iter().collect(), config.build.parallel, build)
             .into_iter()
             .collect::<Result<Vec<_>, _>>()?;
         // Over the room: the largest trees are pruned, all to the one size that fits.
@@ -613,7 +598,7 @@ impl BakedSampler {
             }
             _ => Ok(s),
         };
-        let mut slices = run_jobs_owned(
+        let mut slices = run_jobs(
             built.into_iter().enumerate().collect(),
             config.build.parallel,
             fit,
