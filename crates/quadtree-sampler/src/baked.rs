@@ -491,13 +491,17 @@ impl BakedSampler {
         Self::bake(brdf, config, progress, MAX_BAKE_BYTES)
     }
 
-    /// The bake behind [`BakedSampler::new_with_progress`], its trees limited to `max_bytes`.
+    /// The bake behind [`BakedSampler::new_with_progress`], its trees' first builds stopped
+    /// once they hold more than `hard_limit` bytes ([`MAX_BAKE_BYTES`]; a test sets less):
+    /// the guard against a grid that would take the machine's memory, apart from
+    /// [`BakeConfig::max_bytes`], which prunes.
     fn bake(
         brdf: Arc<dyn Brdf>,
         config: BakeConfig,
         progress: &(dyn Fn(usize, usize) + Sync),
-        max_bytes: usize,
+        hard_limit: usize,
     ) -> Result<Self, BakeError> {
+        let max_bytes = hard_limit.min(MAX_BAKE_BYTES);
         if !(config.defensive > 0.0 && config.defensive < 1.0) {
             return Err(BakeError::Defensive(config.defensive));
         }
@@ -523,11 +527,10 @@ impl BakedSampler {
         // What the trees may hold: the configured bytes less the sampler's own struct.
         let room = config
             .max_bytes
-            .min(max_bytes)
             .saturating_sub(core::mem::size_of::<Self>());
         let too_large = BakeError::TooLarge {
             trees: total,
-            limit: config.max_bytes.min(max_bytes),
+            limit: config.max_bytes,
         };
         // The first build of each tree: within 4× its even share of the room (at the least
         // bytes a node can take, and never under MIN_FIRST_NODES), so that a needle lobe's
@@ -548,7 +551,7 @@ impl BakedSampler {
         let held = AtomicU64::new(0);
         let hard_limit = BakeError::TooLarge {
             trees: total,
-            limit: MAX_BAKE_BYTES.min(max_bytes),
+            limit: max_bytes,
         };
         let model_of = |adj: bool| -> &dyn Brdf { if adj { &adjoint_model } else { &*brdf } };
         let grid_ref = &grid;
@@ -563,7 +566,7 @@ impl BakedSampler {
             }
         };
         let build = |&(adj, k): &(bool, usize)| {
-            if held.load(Ordering::Relaxed) > MAX_BAKE_BYTES.min(max_bytes) as u64 {
+            if held.load(Ordering::Relaxed) > max_bytes as u64 {
                 return Err(hard_limit.clone());
             }
             // A tree over its even share may be over the cut below: its build is kept.
@@ -571,9 +574,7 @@ impl BakedSampler {
                 .map_err(tree_error(k))
                 .and_then(|(s, q)| {
                     let bytes = s.bytes() as u64;
-                    if held.fetch_add(bytes, Ordering::Relaxed) + bytes
-                        > MAX_BAKE_BYTES.min(max_bytes) as u64
-                    {
+                    if held.fetch_add(bytes, Ordering::Relaxed) + bytes > max_bytes as u64 {
                         Err(hard_limit.clone())
                     } else {
                         Ok((s, q))
