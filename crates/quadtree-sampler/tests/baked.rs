@@ -743,7 +743,7 @@ fn damaged_bake_files_are_typed_errors() {
         );
     }
     // Another version, a foreign file, random bytes.
-    for other in [1u8, 2, 3, 4, 11] {
+    for other in [1u8, 2, 3, 4, 12] {
         let mut v = bytes.clone();
         v[8] = other;
         assert!(matches!(
@@ -808,11 +808,20 @@ fn damaged_bake_files_are_typed_errors() {
         Err(BakeFileError::Decode | BakeFileError::Model(_) | BakeFileError::Config(_))
     ));
     // A resealed file with a tree's child link pointing outside the arena: a tree error.
+    // (The record's last byte: the payload ends with the bake's max_bytes, a LEB128 varint.)
     let mut bad_tree = bytes.clone();
-    let last_payload = n - 5;
+    let varint =
+        (64 - (quadtree_sampler::DEFAULT_BAKE_MAX_BYTES as u64).leading_zeros()).div_ceil(7);
+    let last_payload = n - 5 - varint as usize;
     bad_tree[last_payload] ^= 0x40;
     let r = BakedSampler::from_bytes(&reseal(bad_tree));
     assert!(r.is_err(), "a changed tree byte was accepted");
+    // A recorded max_bytes of 0 (a one-byte varint in place of the bake's): a config error.
+    let zero = [&bytes[..n - 4 - varint as usize], &[0u8], &[0u8; 4][..]].concat();
+    assert!(matches!(
+        BakedSampler::from_bytes(&reseal(zero)),
+        Err(BakeFileError::Config(_))
+    ));
     // A header that declares more than a bake may hold is refused before anything is read
     // past it: from bytes, and from a file whose length word says 2⁴⁰ bytes.
     let mut huge = bytes.clone();
