@@ -501,7 +501,7 @@ impl BakedSampler {
         progress: &(dyn Fn(usize, usize) + Sync),
         hard_limit: usize,
     ) -> Result<Self, BakeError> {
-        let max_bytes = hard_limit.min(MAX_BAKE_BYTES);
+        let hard = hard_limit.min(MAX_BAKE_BYTES);
         if !(config.defensive > 0.0 && config.defensive < 1.0) {
             return Err(BakeError::Defensive(config.defensive));
         }
@@ -549,9 +549,9 @@ impl BakedSampler {
         // fails at once; the error names the whole grid, so it is the same whichever trees
         // finished first (serial and parallel bakes still agree).
         let held = AtomicU64::new(0);
-        let hard_limit = BakeError::TooLarge {
+        let over_hard = BakeError::TooLarge {
             trees: total,
-            limit: max_bytes,
+            limit: hard,
         };
         let model_of = |adj: bool| -> &dyn Brdf { if adj { &adjoint_model } else { &*brdf } };
         let grid_ref = &grid;
@@ -566,16 +566,16 @@ impl BakedSampler {
             }
         };
         let build = |&(adj, k): &(bool, usize)| {
-            if held.load(Ordering::Relaxed) > max_bytes as u64 {
-                return Err(hard_limit.clone());
+            if held.load(Ordering::Relaxed) > hard as u64 {
+                return Err(over_hard.clone());
             }
             // A tree over its even share may be over the cut below: its build is kept.
             let r = Slice::build(model_of(adj), grid.direction(k), first, share)
                 .map_err(tree_error(k))
                 .and_then(|(s, q)| {
                     let bytes = s.bytes() as u64;
-                    if held.fetch_add(bytes, Ordering::Relaxed) + bytes > max_bytes as u64 {
-                        Err(hard_limit.clone())
+                    if held.fetch_add(bytes, Ordering::Relaxed) + bytes > hard as u64 {
+                        Err(over_hard.clone())
                     } else {
                         Ok((s, q))
                     }
