@@ -805,8 +805,8 @@ fn bake_reports_trees_a_budget_stopped() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// `brdf bake --max-bytes`: a bake over the limit holds at most it (its largest trees
-/// pruned, exact still: `test --baked` passes), says so in its JSON (`max_bytes`, the pruned
+/// `brdf bake --max-bytes`: a bake over the limit holds at most it (trees pruned, exact
+/// still: `test --baked` passes), says so in its JSON (`max_bytes`, the pruned
 /// trees counted as budget-stopped) and on stderr; a limit of 0 or past 2 GiB is refused
 /// (exit 2) before anything is baked.
 #[test]

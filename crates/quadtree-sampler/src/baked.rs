@@ -33,6 +33,7 @@
 //! lobe then smears between slices. The maps above keep sharp lobes sharp between slices
 //! and the mixture keeps the pdf exact.
 
+use crate::bake_budget::{self, Prunable};
 use crate::bake_grid::{BakeGrid, Nearest};
 use crate::baked_views::{BakedAt, BakedPoint, BrokenPdf};
 use crate::config::BuildConfig;
@@ -173,11 +174,12 @@ pub struct BakeConfig {
     pub defensive: f64,
     /// The most bytes the bake may hold ([`BakedSampler::bytes`]), in 1 ..=
     /// [`MAX_BAKE_BYTES`]. Default [`DEFAULT_BAKE_MAX_BYTES`] (16 MiB). A bake whose trees,
-    /// built as `build` asks, would hold more has its largest trees built again with fewer
-    /// nodes, all to one size (the least cut that fits: trees under it are kept as they
-    /// are), each refined greedily by wasted volume within its node budget: exact still,
-    /// with more rejection trials (and a coarser warp proxy) in those trees. A grid whose
-    /// trees cannot fit even so is [`BakeError::TooLarge`].
+    /// built as `build` asks, would hold more has trees pruned back: of the trees over
+    /// their even share, the subdivisions that save the fewest rejection trials are
+    /// collapsed first, across all of them, until the bake fits (trees under their share
+    /// are kept as they are): exact still, with more rejection trials (and a coarser warp
+    /// proxy) in the pruned trees. A grid whose trees cannot fit even so, each within
+    /// [`crate::MAX_USABLE_EXPECTED_TRIALS`], is [`BakeError::TooLarge`].
     pub max_bytes: usize,
 }
 
@@ -251,37 +253,6 @@ impl Slice {
     /// warp's shapes, which need the model, live in its nodes and add nothing.
     fn bytes_of(q: &Quadtree) -> usize {
         PackedTree::new(q).stats().bytes + WarpTable::new(q).bytes() + core::mem::size_of::<Self>()
-    }
-
-    /// The slice of `q` (built for `table` at `wi`) pruned ([`Quadtree::prune_to`]) to the
-    /// most nodes whose slice holds at most `cut` bytes (a bisection over the node count:
-    /// pruning collapses the same twigs in the same order whatever count it stops at), or
-    /// `None` where even its root alone holds more, or where what fits would need more than
-    /// [`crate::MAX_USABLE_EXPECTED_TRIALS`] trials a sample.
-    fn pruned(table: &dyn Brdf, wi: Vec3, q: Quadtree, cut: usize) -> Option<Self> {
-        let prune = |k: usize| {
-            let mut p = q.clone();
-            p.prune_to(k);
-            p
-        };
-        // The root alone fits (else nothing does); the whole tree does not.
-        let (mut lo, mut hi) = (1, q.nodes().len());
-        while hi - lo > 1 {
-            let mid = lo + (hi - lo) / 2;
-            if Self::bytes_of(&prune(mid)) <= cut {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        let p = prune(lo);
-        // Pruned past usability: as a build the budget stopped there would be.
-        let e = p.stats().expected_trials;
-        if e.is_nan() || e > crate::MAX_USABLE_EXPECTED_TRIALS {
-            return None;
-        }
-        let s = Self::of_tree(table, wi, &p);
-        (s.bytes() <= cut).then_some(s)
     }
 
     /// A slice from its parts (a bake's, or a file's), with its pdf scales.
@@ -456,23 +427,6 @@ fn run_jobs<J: Send, T: Send>(
     jobs.into_iter().map(f).collect()
 }
 
-/// The largest size c such that the sizes cut to c, Σ min(b, c), fit in `room` (for sizes
-/// whose sum is over it; at least ⌊room / n⌋, and below the largest size).
-fn water_level(sizes: &[usize], room: usize) -> usize {
-    let mut sorted = sizes.to_vec();
-    sorted.sort_unstable();
-    let n = sorted.len();
-    let mut below = 0usize;
-    for (i, &b) in sorted.iter().enumerate() {
-        // The sizes before i kept whole, this one and every later one cut to b.
-        if below + b * (n - i) > room {
-            return (room - below) / (n - i);
-        }
-        below += b;
-    }
-    sorted.last().copied().unwrap_or(0)
-}
-
 impl BakedSampler {
     /// Bakes `brdf` (any model with a continuous part): a tree per grid direction, built in
     /// parallel with rayon when the `rayon` feature is on and `config.build.parallel` is set
@@ -587,25 +541,64 @@ impl BakedSampler {
         let built = run_jobs(jobs.iter().collect(), config.build.parallel, build)
             .into_iter()
             .collect::<Result<Vec<_>, _>>()?;
-        // Over the room: the largest trees are pruned, all to the one size that fits.
+        // Over the room: the trees over their even share give up the nodes that save the
+        // fewest trials, across all of them, until the bake fits (see `bake_budget`).
         let bytes: Vec<usize> = built.iter().map(|(s, _)| s.bytes()).collect();
-        let cut = (bytes.iter().sum::<usize>() > room).then(|| water_level(&bytes, room));
-        let fit = |(j, (s, q)): (usize, (Slice, Option<Quadtree>))| match cut {
-            Some(cut) if bytes[j] > cut => {
-                let (adj, k) = jobs[j];
-                // Every tree over the cut is over the even share, so its build was kept.
-                q.and_then(|q| Slice::pruned(model_of(adj), grid.direction(k), q, cut))
-                    .ok_or_else(|| too_large.clone())
+        let mut slices = if bytes.iter().sum::<usize>() > room {
+            let prunable: Vec<(usize, &Quadtree)> = built
+                .iter()
+                .enumerate()
+                .filter_map(|(j, (_, q))| q.as_ref().map(|q| (j, q)))
+                .collect();
+            let fixed: usize = built
+                .iter()
+                .zip(&bytes)
+                .filter(|((_, q), _)| q.is_none())
+                .map(|(_, b)| b)
+                .sum();
+            let orders = run_jobs(prunable.clone(), config.build.parallel, |(_, q)| {
+                Prunable::new(q)
+            });
+            let pruned = |q: &Quadtree, p: &Prunable, k: usize| {
+                let mut q = q.clone();
+                q.collapse(&p.order[..k]);
+                q
+            };
+            let counts = bake_budget::plan(&orders, |counts| {
+                let work = prunable.iter().zip(&orders).zip(counts).collect();
+                let sizes = run_jobs(work, config.build.parallel, |(((j, q), p), &k)| {
+                    if k == 0 {
+                        bytes[*j]
+                    } else {
+                        Slice::bytes_of(&pruned(q, p, k))
+                    }
+                });
+                fixed + sizes.iter().sum::<usize>() <= room
+            })
+            .ok_or_else(|| too_large.clone())?;
+            let mut count = alloc::vec![0usize; built.len()];
+            for ((j, _), k) in prunable.iter().zip(counts) {
+                count[*j] = k;
             }
-            _ => Ok(s),
+            let mut order = orders.into_iter();
+            let work = built
+                .into_iter()
+                .enumerate()
+                .map(|(j, (s, q))| (j, s, q.map(|q| (q, order.next().expect("one a kept tree")))))
+                .collect();
+            run_jobs(work, config.build.parallel, |(j, s, q)| match q {
+                Some((q, p)) if count[j] > 0 => {
+                    let (adj, k) = jobs[j];
+                    Slice::of_tree(model_of(adj), grid.direction(k), &pruned(&q, &p, count[j]))
+                }
+                _ => s,
+            })
+        } else {
+            built.into_iter().map(|(s, _)| s).collect()
         };
-        let mut slices = run_jobs(
-            built.into_iter().enumerate().collect(),
-            config.build.parallel,
-            fit,
-        )
-        .into_iter()
-        .collect::<Result<Vec<_>, _>>()?;
+        if slices.iter().map(Slice::bytes).sum::<usize>() > room {
+            return Err(too_large);
+        }
         let tables = |slices: Vec<Slice>, adjoint: bool| {
             let eval = |wi: Vec3, w: Vec3| {
                 if adjoint {
@@ -1022,24 +1015,6 @@ impl BakedSampler {
 mod tests {
     use super::*;
     use alloc::string::ToString;
-
-    /// The water level is the largest cut whose cut sizes fit: one more byte does not.
-    #[test]
-    fn the_water_level_is_the_largest_cut_that_fits() {
-        let cut_sum = |sizes: &[usize], c: usize| sizes.iter().map(|&b| b.min(c)).sum::<usize>();
-        for (sizes, room) in [
-            (alloc::vec![10, 20, 30, 40], 90),
-            (alloc::vec![10, 20, 30, 40], 60),
-            (alloc::vec![100; 7], 699),
-            (alloc::vec![5, 1000, 7, 3000, 2], 1000),
-            (alloc::vec![50], 49),
-        ] {
-            let c = water_level(&sizes, room);
-            assert!(cut_sum(&sizes, c) <= room, "{sizes:?} {room}: {c}");
-            assert!(cut_sum(&sizes, c + 1) > room, "{sizes:?} {room}: {c}");
-            assert!(c >= room / sizes.len());
-        }
-    }
 
     /// The tabled choice is positive wherever the model's is (so no delta lobe is starved)
     /// and close to it (the tabulation is what it says); a model without a delta part, or

@@ -96,8 +96,9 @@ pub enum BakeError {
     },
     /// The grid would hold more than [`MAX_TREES`] trees.
     TooManyTrees(usize),
-    /// The grid's trees passed [`crate::MAX_BAKE_BYTES`]: too many trees, or too fine ones,
-    /// for one bake.
+    /// The grid's trees cannot fit the bake's limit ([`crate::BakeConfig::max_bytes`], even
+    /// pruned as far as a tree may be, or [`crate::MAX_BAKE_BYTES`] as built): too many
+    /// trees, or too fine ones, for one bake.
     TooLarge {
         /// The trees the grid asked for (twice the grid for a non-reciprocal model).
         trees: usize,
@@ -139,7 +140,7 @@ impl fmt::Display for BakeError {
             }
             Self::TooLarge { trees, limit } => write!(
                 f,
-                "the grid's {trees} trees cannot be held in the {:.1} MiB this bake may hold: use fewer θ or φ steps, a smaller node budget, or more bytes (max_bytes, at most 2 GiB)",
+                "the grid's {trees} trees cannot be held in the {limit} bytes ({:.1} MiB) this bake may hold: use fewer θ or φ steps, a smaller node budget, or more bytes (max_bytes, at most 2 GiB)",
                 *limit as f64 / (1u64 << 20) as f64
             ),
             Self::Defensive(d) => write!(f, "defensive share = {d} must be in (0, 1)"),

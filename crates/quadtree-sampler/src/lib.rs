@@ -64,6 +64,7 @@ extern crate alloc;
 #[cfg(feature = "std")]
 extern crate std;
 
+mod bake_budget;
 mod bake_file;
 mod bake_grid;
 mod baked;

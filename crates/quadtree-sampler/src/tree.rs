@@ -785,20 +785,19 @@ impl Quadtree {
         }
     }
 
-    /// Collapses subtrees back into leaves until the tree has at most `max_nodes` nodes (at
-    /// least the root), each time the inner node whose four children are all leaves and
-    /// whose own box adds the least to the live leaves' box volume (so to E\[T\]); ties by
-    /// lower index, so the result is fixed. A collapsed node samples with the proposal and
-    /// bound its own evaluation found (kept for that), its v1 the sum of its children's:
-    /// exact, with more trials. Marks the tree [`Quadtree::budget_exhausted`] where it
-    /// removed anything; returns whether it did. What a bake over its memory does with its
-    /// largest trees, instead of building them again with a smaller budget (which costs
-    /// nearly the whole build again: most of a needle lobe's build is its first levels).
-    pub(crate) fn prune_to(&mut self, max_nodes: usize) -> bool {
-        let n = self.nodes.len();
-        if n <= max_nodes.max(1) {
-            return false;
-        }
+    /// Every collapse pruning makes, cheapest first, down to the root alone (what a bake over
+    /// its memory limit takes its trees' nodes back with, instead of building them again
+    /// with a smaller budget, which costs nearly the whole build again: most of a needle
+    /// lobe's build is its first levels): the inner node
+    /// whose four children are all leaves (a twig) and whose own box adds the least live
+    /// box volume to the leaves' (ties by lower index, so the order is fixed), with that
+    /// added volume (E\[T\] grows by it over the tree's volume, which collapsing keeps: a
+    /// collapsed node's v1 is its children's sum). Collapsing a twig can make its parent
+    /// one, so the added volumes need not rise along the order. Any prefix of it, given to
+    /// [`Quadtree::collapse`], is a pruned tree.
+    pub(crate) fn collapse_order(&self) -> Vec<(u32, f64)> {
+        let nodes = &self.nodes;
+        let n = nodes.len();
         let live_box = |node: &Node| {
             if node.v1 > 0.0 {
                 node.box_volume()
@@ -807,12 +806,14 @@ impl Quadtree {
             }
         };
         let mut parent = alloc::vec![u32::MAX; n];
-        for (i, node) in self.nodes.iter().enumerate() {
+        for (i, node) in nodes.iter().enumerate() {
             if !node.is_leaf() {
                 let c = node.first_child as usize;
                 parent[c..c + 4].fill(i as u32);
             }
         }
+        // Whether each node is a leaf as the collapses so far leave it.
+        let mut leaf: Vec<bool> = nodes.iter().map(Node::is_leaf).collect();
         // (added box volume, index), smallest first.
         #[derive(PartialEq)]
         struct Twig(f64, u32);
@@ -827,31 +828,43 @@ impl Quadtree {
                 o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
             }
         }
-        let nodes = &mut self.nodes;
-        let twig = |nodes: &[Node], i: usize| {
+        let twig = |leaf: &[bool], i: usize| {
             let c = nodes[i].first_child as usize;
-            (!nodes[i].is_leaf() && nodes[c..c + 4].iter().all(Node::is_leaf)).then(|| {
+            (!leaf[i] && leaf[c..c + 4].iter().all(|&l| l)).then(|| {
                 let children: f64 = nodes[c..c + 4].iter().map(live_box).sum();
                 Twig(live_box(&nodes[i]) - children, i as u32)
             })
         };
-        let mut heap: BinaryHeap<Twig> = (0..n).filter_map(|i| twig(nodes, i)).collect();
-        let mut removed = alloc::vec![false; n];
-        let mut count = n;
-        while count > max_nodes.max(1) {
-            let Some(Twig(_, i)) = heap.pop() else {
-                break;
-            };
+        let mut heap: BinaryHeap<Twig> = (0..n).filter_map(|i| twig(&leaf, i)).collect();
+        let mut order = Vec::with_capacity(n / 4);
+        while let Some(Twig(added, i)) = heap.pop() {
+            order.push((i, added));
             let i = i as usize;
-            let c = nodes[i].first_child as usize;
-            removed[c..c + 4].fill(true);
-            nodes[i].first_child = LEAF;
-            count -= 4;
+            leaf[i] = true;
             if let Some(p) = parent.get(i).copied().filter(|&p| p != u32::MAX)
-                && let Some(t) = twig(nodes, p as usize)
+                && let Some(t) = twig(&leaf, p as usize)
             {
                 heap.push(t);
             }
+        }
+        order
+    }
+
+    /// Collapses the twigs of `steps`, a prefix of [`Quadtree::collapse_order`], into leaves
+    /// (each keeps the proposal and bound its own evaluation found, its v1 the sum of its
+    /// children's: exact, with more trials) and compacts the arena. Marks the tree
+    /// [`Quadtree::budget_exhausted`] where it removed anything; returns whether it did.
+    pub(crate) fn collapse(&mut self, steps: &[(u32, f64)]) -> bool {
+        if steps.is_empty() {
+            return false;
+        }
+        let n = self.nodes.len();
+        let mut removed = alloc::vec![false; n];
+        for &(i, _) in steps {
+            let i = i as usize;
+            let c = self.nodes[i].first_child as usize;
+            removed[c..c + 4].fill(true);
+            self.nodes[i].first_child = LEAF;
         }
         // Compact: the kept nodes in their order (a collapsed node's four children went
         // together, so every kept group of four stays contiguous, after its parent).
@@ -863,8 +876,8 @@ impl Quadtree {
                 next += 1;
             }
         }
-        let mut kept = Vec::with_capacity(count);
-        for (i, node) in nodes.iter().enumerate() {
+        let mut kept = Vec::with_capacity(next as usize);
+        for (i, node) in self.nodes.iter().enumerate() {
             if !removed[i] {
                 let mut node = *node;
                 if !node.is_leaf() {
@@ -972,6 +985,16 @@ mod tests {
     /// small enough is untouched.
     #[test]
     fn pruning_keeps_a_valid_tree_and_grows_e_t_least_first() {
+        // Collapses, in order, until at most `max_nodes` nodes are left (at least the root).
+        let prune_to = |q: &mut Quadtree, max_nodes: usize| {
+            let n = q.nodes().len();
+            if n <= max_nodes.max(1) {
+                return false;
+            }
+            let order = q.collapse_order();
+            let steps = (n - max_nodes.max(1)).div_ceil(4).min(order.len());
+            q.collapse(&order[..steps])
+        };
         let brdf = brdf_core::registry::create("phong", ["n=1000", "kd=0.1"]).unwrap();
         let wi = Vec3::new(0.6, 0.0, 0.8);
         let full = Quadtree::new(&*brdf, wi, BuildConfig::default()).unwrap();
@@ -984,12 +1007,12 @@ mod tests {
                 .sum()
         };
         let mut untouched = full.clone();
-        assert!(!untouched.prune_to(n));
+        assert!(!prune_to(&mut untouched, n));
         assert_eq!(untouched, full);
         let mut last = full.stats().expected_trials;
         for keep in [n - 4, 3 * n / 4, n / 2, n / 4, 5, 1] {
             let mut q = full.clone();
-            assert!(q.prune_to(keep));
+            assert!(prune_to(&mut q, keep));
             let nodes = q.nodes();
             assert!(nodes.len() <= keep.max(1) && nodes.len() + 4 > keep.max(1));
             assert!(q.budget_exhausted());
@@ -1020,14 +1043,14 @@ mod tests {
         assert_eq!(
             {
                 let mut q = full.clone();
-                q.prune_to(1);
+                prune_to(&mut q, 1);
                 q.nodes().len()
             },
             1
         );
         // One collapse: the twig whose box adds least, and nothing else moves.
         let mut one = full.clone();
-        one.prune_to(n - 4);
+        prune_to(&mut one, n - 4);
         let added = |q: &Quadtree| -> f64 {
             q.leaves()
                 .filter(|(_, l)| l.v1 > 0.0)
@@ -1058,6 +1081,27 @@ mod tests {
             (grew - least).abs() <= 1e-12 * added(&full),
             "{grew} vs {least}"
         );
+        // The order: a collapse per inner node, down to the root; any prefix of it is the
+        // tree pruning leaves, its E[T] the full tree's grown by the prefix's added volumes
+        // (what a bake's allocation across trees reckons with).
+        let order = full.collapse_order();
+        assert_eq!(order.len(), (n - 1) / 4);
+        assert_eq!(order[0].1, least);
+        let v = live(&full);
+        for steps in [0, 1, order.len() / 3, order.len() - 1, order.len()] {
+            let mut q = full.clone();
+            assert_eq!(q.collapse(&order[..steps]), steps > 0);
+            assert_eq!(q.nodes().len(), n - 4 * steps);
+            let mut p = full.clone();
+            prune_to(&mut p, n - 4 * steps);
+            if steps > 0 {
+                assert_eq!(q, p, "{steps}");
+            }
+            let grown: f64 = order[..steps].iter().map(|s| s.1).sum();
+            let e = (added(&full) + grown) / v;
+            let got = q.stats().expected_trials;
+            assert!((e - got).abs() <= 1e-9 * got, "{steps}: {e} vs {got}");
+        }
     }
 
     /// Lobes narrower than the root's integration points: Phong n = 10⁵ (a needle) and a

@@ -1167,14 +1167,14 @@ fn rim_leaves_follow_a_lobe_that_grows_toward_the_horizon() {
     }
 }
 
-/// A bake over its memory limit (`BakeConfig::max_bytes`) holds at most that: its largest
-/// trees are pruned, all to one size, and every other tree is kept bit for bit (same E[T]);
+/// A bake over its memory limit (`BakeConfig::max_bytes`) holds at most that: some of its
+/// trees are pruned (more trials), every other tree is kept bit for bit (same E[T]);
 /// serial and parallel bakes are the same bytes; the file keeps the limit; and the pruned
 /// sampler is still exact: each sample's pdf is `pdf()`, χ² against its own pdf at off-grid
 /// wi in both modes (family-wise α = 0.01), and its mean weight is the albedo within 4
 /// standard errors. A limit of 0 or past 2 GiB, and one no tree fits in, are typed errors.
 #[test]
-fn a_bake_over_its_memory_limit_prunes_its_largest_trees() {
+fn a_bake_over_its_memory_limit_prunes_where_it_costs_fewest_trials() {
     let b = model("ward", &["alpha_x=0.3", "alpha_y=0.01", "kd=0"]);
     let free = BakedSampler::new(b.clone(), small()).unwrap();
     let limit = free.bytes() * 8 / 10;

@@ -36,9 +36,10 @@ pub(crate) struct BakeArgs {
     #[arg(long, value_name = "T")]
     target_trials: Option<f64>,
     /// The most bytes the bake may hold in memory (at most 2 GiB; the JSON's `bytes`): a
-    /// grid whose trees would hold more has its largest trees built again with fewer nodes,
-    /// all to one size, exact still but with more rejection trials a sample (16 MiB by
-    /// default).
+    /// grid whose trees would hold more has trees pruned back (the subdivisions that save
+    /// the fewest rejection trials collapsed first, across the trees over their even
+    /// share), exact still but with more rejection trials a sample and a coarser warp proxy
+    /// (16 MiB by default).
     #[arg(long, value_name = "BYTES", default_value_t = DEFAULT_BAKE_MAX_BYTES)]
     max_bytes: usize,
     /// Samples drawn at each checked incident direction when checking that the grid covers
