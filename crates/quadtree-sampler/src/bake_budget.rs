@@ -14,7 +14,8 @@
 //! large tree to one size instead, the water level of the bytes, gave Ward αx = 0.5,
 //! αy = 0.003 at the default grid and 16 MiB a mean E\[T\] over its trees of 1.505 and a
 //! largest of 2.18, where this gives 1.456 and 1.73; αx = 1, αy = 0.001: mean 3.19 → 2.90,
-//! 90th percentile 5.29 → 3.71.)
+//! 90th percentile 5.29 → 3.71, and with a first build of 8 shares instead of 4, its
+//! largest 9.76 → 4.72.)
 //!
 //! The ranking is fixed by the trees alone (ties by tree, then by the tree's own order), so
 //! serial and parallel bakes prune alike. A tree is never pruned past
