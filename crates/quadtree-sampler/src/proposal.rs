@@ -202,25 +202,33 @@ impl Shape {
     #[must_use]
     #[inline]
     pub fn warp(&self, u: DVec2) -> DVec2 {
-        let l = |at: usize| f64::from(self.grid[at]);
-        if !self.fine {
-            let [c00, c10, c01, c11] = CORNERS.map(l);
-            let x = linear_inverse(u.x, c00 + c01, c10 + c11);
-            let bottom = c00 + (c10 - c00) * x;
-            let top = c01 + (c11 - c01) * x;
-            return DVec2::new(x, linear_inverse(u.y, bottom, top));
-        }
-        // The marginal in x at column i (0, ½, 1): ∫ S dy, the trapezoid of its column.
-        let column = |i: usize| l(i) + 2.0 * l(3 + i) + l(6 + i);
-        let x = halves_inverse(u.x, column(0), column(1), column(2));
-        // The conditional in y at x: the column values there, linear in y on each half.
-        let (lower, f) = (x < 0.5, 2.0 * x);
-        let row = |j: usize| {
-            let (a, b, c) = (l(3 * j), l(3 * j + 1), l(3 * j + 2));
-            let (p, q, s) = if lower { (a, b, f) } else { (b, c, f - 1.0) };
-            p + (q - p) * s
+        warp_levels(self.fine, |at| f64::from(self.grid[at]), u)
+    }
+
+    /// [`Shape::warp`] of the shape whose packed words ([`Shape::to_bits`],
+    /// [`Shape::fine_bits`]) are `bits` (not 0: a flat leaf does not warp) and `fine`, read
+    /// from the words themselves: the same levels in the same operations, so the same bits
+    /// as decoding the shape first, without the round trip through memory that costs a
+    /// stall where a shape was just decoded a byte at a time (the baked warp's leaf).
+    #[must_use]
+    #[inline(always)]
+    pub(crate) fn warp_packed(bits: u32, fine: u32, u: DVec2) -> DVec2 {
+        debug_assert!(bits != 0);
+        let level = |at: usize| {
+            let (word, k) = match at {
+                0 => (bits, 0),
+                2 => (bits, 1),
+                6 => (bits, 2),
+                8 => (bits, 3),
+                1 => (fine, 0),
+                3 => (fine, 1),
+                4 => (fine, 2),
+                5 => (fine, 3),
+                _ => (fine, 4),
+            };
+            f64::from(packed_level(word, k))
         };
-        DVec2::new(x, halves_inverse(u.y, row(0), row(1), row(2)))
+        warp_levels(fine != 0, level, u)
     }
 
     /// The inverse of [`Shape::warp`]: the uniform point it maps to box coordinates `t`
@@ -427,6 +435,29 @@ impl Shape {
         }
         Self::from_grid(grid)
     }
+}
+
+/// [`Shape::warp`] from the shape's levels at its control points (`l`, by grid index).
+#[inline(always)]
+fn warp_levels(fine: bool, l: impl Fn(usize) -> f64, u: DVec2) -> DVec2 {
+    if !fine {
+        let [c00, c10, c01, c11] = CORNERS.map(l);
+        let x = linear_inverse(u.x, c00 + c01, c10 + c11);
+        let bottom = c00 + (c10 - c00) * x;
+        let top = c01 + (c11 - c01) * x;
+        return DVec2::new(x, linear_inverse(u.y, bottom, top));
+    }
+    // The marginal in x at column i (0, ½, 1): ∫ S dy, the trapezoid of its column.
+    let column = |i: usize| l(i) + 2.0 * l(3 + i) + l(6 + i);
+    let x = halves_inverse(u.x, column(0), column(1), column(2));
+    // The conditional in y at x: the column values there, linear in y on each half.
+    let (lower, f) = (x < 0.5, 2.0 * x);
+    let row = |j: usize| {
+        let (a, b, c) = (l(3 * j), l(3 * j + 1), l(3 * j + 2));
+        let (p, q, s) = if lower { (a, b, f) } else { (b, c, f - 1.0) };
+        p + (q - p) * s
+    };
+    DVec2::new(x, halves_inverse(u.y, row(0), row(1), row(2)))
 }
 
 /// The x ∈ [0, 1) where the CDF of the density ∝ (1 − x)·p + x·q on [0, 1] reaches `u`
@@ -1031,6 +1062,48 @@ mod tests {
     use super::*;
     use crate::chart::tests::nodes;
     use rand_core::Rng;
+
+    /// The warp read from a shape's packed words is the shape's own warp, bit for bit, for
+    /// coarse and fine shapes (from random levels, and the extremes) at random points and
+    /// on the box's edges and seams.
+    #[test]
+    fn the_packed_warp_is_the_shapes_warp() {
+        let mut rng = rand_pcg::Pcg64::new(0x5eed, 0x6);
+        let mut level = || 1 + (rng.next_u32() % 63) as u8;
+        let mut shapes = alloc::vec![
+            Shape::from_levels([1, 63, 1, 63]).unwrap(),
+            Shape::from_grid([1, 63, 1, 63, 1, 63, 1, 63, 1]).unwrap(),
+        ];
+        for _ in 0..50 {
+            shapes.push(Shape::from_levels([level(), level(), level(), level()]).unwrap());
+            shapes.push(Shape::from_grid(core::array::from_fn(|_| level())).unwrap());
+        }
+        let mut points = alloc::vec![];
+        for x in [0.0, 0.25, 0.5, 0.75, 1.0 - f64::EPSILON] {
+            for y in [0.0, 0.5, 1.0 - f64::EPSILON] {
+                points.push(DVec2::new(x, y));
+            }
+        }
+        let mut rng = rand_pcg::Pcg64::new(0x5eed, 0x7);
+        for _ in 0..200 {
+            points.push(DVec2::new(
+                crate::sampler::uniform_f64(&mut rng),
+                crate::sampler::uniform_f64(&mut rng),
+            ));
+        }
+        for shape in &shapes {
+            let (bits, fine) = (shape.to_bits(), shape.fine_bits());
+            assert_ne!(bits, 0, "{shape:?}");
+            assert_eq!(Shape::from_checked_bits(bits, fine), *shape);
+            for &u in &points {
+                let (a, b) = (Shape::warp_packed(bits, fine, u), shape.warp(u));
+                assert_eq!(
+                    a.to_array().map(f64::to_bits),
+                    b.to_array().map(f64::to_bits)
+                );
+            }
+        }
+    }
 
     /// `Shape::density` (hand-written for the pdf's path) is S/mean(S) from `value` and
     /// `mean`, on both sides of the fine quarters' seams and at the box's edges, and its

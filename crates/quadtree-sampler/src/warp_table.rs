@@ -579,11 +579,12 @@ impl WarpTable {
                 let rect = Rect::dyadic(depth as u8, column, row);
                 let t = DVec2::new((ux - lx) as f64 / wx as f64, (uy - ly) as f64 / wy as f64)
                     .clamp(DVec2::ZERO, DVec2::splat(1.0 - f64::EPSILON));
-                let shape = if shaped {
-                    Shape::from_checked_bits(n.rows[0] & !RIM_FLAG, n.rows[1])
+                let (bits, fine) = if shaped {
+                    (n.rows[0] & !RIM_FLAG, n.rows[1])
                 } else {
-                    Shape::FLAT
+                    (0, 0)
                 };
+                let shape = Shape::from_checked_bits(bits, fine);
                 let rim = shaped && n.rows[0] & RIM_FLAG != 0;
                 let leaf = WarpLeaf {
                     index: i,
@@ -592,18 +593,29 @@ impl WarpTable {
                     shape,
                     rim,
                 };
+                // The leaf's point from its shape's words, not from the shape just decoded
+                // (reading that back waited on its byte stores: see `Shape::warp_packed`);
+                // the same points as `shape.warp(t)`, and a flat square leaf's `t` itself.
+                let flat = fine == 0 && (bits == 0 || bits == FLAT_CORNERS);
+                let warped = |t: DVec2| {
+                    if bits == 0 {
+                        Shape::FLAT.warp(t)
+                    } else {
+                        Shape::warp_packed(bits, fine, t)
+                    }
+                };
                 let p = if self.disk && depth <= 1 {
                     if rim {
-                        SectorChart::of(&rect).point(shape.warp(t))
+                        SectorChart::of(&rect).point(warped(t))
                     } else {
                         sector_point(&rect, t)
                     }
                 } else if rim {
-                    RimChart::of(&rect)?.point(shape.warp(t))
-                } else if shape.is_flat() {
+                    RimChart::of(&rect)?.point(warped(t))
+                } else if flat {
                     rect.min + t * rect.side()
                 } else {
-                    rect.min + shape.warp(t) * rect.side()
+                    rect.min + warped(t) * rect.side()
                 };
                 return Some((p, leaf));
             }
@@ -685,6 +697,10 @@ impl WarpTable {
         }
     }
 }
+
+/// A coarse shape's word with every corner at level 63: [`Shape::FLAT`]'s levels (which
+/// [`Shape::to_bits`] writes as 0, and a file may spell out).
+const FLAT_CORNERS: u32 = (1 << 24) - 1;
 
 /// The deepest tree a table can hold (the build's and the bake file's limit).
 const MAX_DEPTH: u32 = 30;
