@@ -128,7 +128,10 @@ pub(crate) fn run(
             .coverage_with_progress::<brdf_sampling::rng::Pcg64>(config, &progress)
             .map_err(|e| CliError::Usage(format!("--coverage-samples: {e}")))?;
         drop(bar);
-        if let Some(line) = coverage_warning(&c, brdf.symmetry().isotropic) {
+        // Trees cut short with the bake at its memory limit: pruning, not only the grid,
+        // may be what costs (a finer grid at the same limit prunes more).
+        let pruned = stopped > 0 && baked.bytes() >= baked.config().max_bytes / 10 * 9;
+        if let Some(line) = coverage_warning(&c, brdf.symmetry().isotropic, pruned) {
             eprintln!("brdf: warning: {line}");
         }
         Some((c, t0.elapsed().as_secs_f64()))
@@ -208,8 +211,9 @@ fn role_name(r: Role) -> &'static str {
 }
 
 /// The warning for a grid too coarse for its material, if any checked direction is past
-/// [`COVERAGE_LIMIT`] in either mode (naming --phi-steps only where the grid has columns).
-fn coverage_warning(c: &Coverage, isotropic: bool) -> Option<String> {
+/// [`COVERAGE_LIMIT`] in either mode (naming --phi-steps only where the grid has columns;
+/// `pruned`: the memory limit cut trees short, so a larger --max-bytes is named first).
+fn coverage_warning(c: &Coverage, isotropic: bool, pruned: bool) -> Option<String> {
     let parts: Vec<String> = [BakedMode::Rejection, BakedMode::Warp]
         .into_iter()
         .filter_map(|m| {
@@ -236,8 +240,13 @@ fn coverage_warning(c: &Coverage, isotropic: bool) -> Option<String> {
         format!(
             "the grid is too coarse for this material: between its trees a baked sample is worth \
              under 1/{COVERAGE_LIMIT} of an exact one (R > {COVERAGE_LIMIT}, R the weight's relative \
-             second moment) in {}; bake with more {}",
+             second moment) in {}; bake with {}more {}",
             parts.join(" and "),
+            if pruned {
+                "a larger --max-bytes (the limit pruned its trees), or "
+            } else {
+                ""
+            },
             finer_grid_flags(isotropic)
         )
     })
