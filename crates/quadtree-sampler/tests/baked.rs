@@ -1172,7 +1172,8 @@ fn rim_leaves_follow_a_lobe_that_grows_toward_the_horizon() {
 /// serial and parallel bakes are the same bytes; the file keeps the limit; and the pruned
 /// sampler is still exact: each sample's pdf is `pdf()`, χ² against its own pdf at off-grid
 /// wi in both modes (family-wise α = 0.01), and its mean weight is the albedo within 4
-/// standard errors. A limit of 0 or past 2 GiB, and one no tree fits in, are typed errors.
+/// standard errors, while a pdf that drops a neighbour is rejected (the negative control on
+/// a pruned bake). A limit of 0 or past 2 GiB, and one no tree fits in, are typed errors.
 #[test]
 fn a_bake_over_its_memory_limit_prunes_where_it_costs_fewest_trials() {
     let b = model("ward", &["alpha_x=0.3", "alpha_y=0.01", "kd=0"]);
@@ -1259,6 +1260,23 @@ fn a_bake_over_its_memory_limit_prunes_where_it_costs_fewest_trials() {
         }
     }
     assert_eq!(capped.bound_violations(), 0);
+    // The same test can fail on a pruned bake: a pdf that drops a neighbour is rejected.
+    capped.set_mode(BakedMode::Warp);
+    let broken = Arc::new(capped).broken_pdf_for_testing();
+    let wi = wis[0];
+    let v = Validation::new(&*b, wi, grid, 1e-7).unwrap();
+    let r = v.test_chunked(
+        &broken.at(wi),
+        500_000,
+        |c| Pcg64::seed_from_u64(4_400 + c),
+        sidak(0.01, 1),
+    );
+    let c = r.chi2_own.as_ref().unwrap();
+    println!(
+        "broken: own χ² {:.1} dof {} p {:e}",
+        c.statistic, c.dof, c.p_value
+    );
+    assert!(!r.passed_own(), "the broken pdf passed: {c:?}");
     // Limits out of range, and one no tree fits in.
     for bad in [0, quadtree_sampler::MAX_BAKE_BYTES + 1] {
         let c = BakeConfig {
