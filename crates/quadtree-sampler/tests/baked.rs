@@ -233,15 +233,28 @@ fn a_pdf_that_drops_a_neighbour_is_rejected() {
     // Halfway between rows 3 and 4: both neighbours weigh ½.
     let wi = dir(3.5 * GRID_THETA_MAX_DEG / 7.0, 20.0);
     let broken = baked.clone().broken_pdf_for_testing();
+    let p = assert_broken_rejected(&*b, &broken, wi, 1_000_000, 7);
+    assert!(p < 1e-10);
+}
+
+/// χ² of `broken` at `wi` against its own (wrong) pdf, `samples` in chunks seeded from
+/// `seed`, at α = 0.01: asserts the test rejects it, and returns the p-value.
+fn assert_broken_rejected(
+    b: &dyn Brdf,
+    broken: &quadtree_sampler::BrokenPdf,
+    wi: Vec3,
+    samples: u64,
+    seed: u64,
+) -> f64 {
     let grid = CellGrid::Polar {
         rings: 16,
         sectors: 33,
     };
-    let v = Validation::new(&*b, wi, grid, 1e-7).unwrap();
+    let v = Validation::new(b, wi, grid, 1e-7).unwrap();
     let r = v.test_chunked(
         &broken.at(wi),
-        1_000_000,
-        |k| Pcg64::seed_from_u64(7 + k),
+        samples,
+        |k| Pcg64::seed_from_u64(seed + k),
         sidak(0.01, 1),
     );
     let c = r.chi2_own.as_ref().unwrap();
@@ -250,7 +263,7 @@ fn a_pdf_that_drops_a_neighbour_is_rejected() {
         c.statistic, c.dof, c.p_value
     );
     assert!(!r.passed_own(), "the broken pdf passed: {c:?}");
-    assert!(c.p_value < 1e-10);
+    c.p_value
 }
 
 /// The mean luminance weight f·cos/pdf of `n` samples (lost samples score 0, every number
@@ -1263,20 +1276,7 @@ fn a_bake_over_its_memory_limit_prunes_where_it_costs_fewest_trials() {
     // The same test can fail on a pruned bake: a pdf that drops a neighbour is rejected.
     capped.set_mode(BakedMode::Warp);
     let broken = Arc::new(capped).broken_pdf_for_testing();
-    let wi = wis[0];
-    let v = Validation::new(&*b, wi, grid, 1e-7).unwrap();
-    let r = v.test_chunked(
-        &broken.at(wi),
-        500_000,
-        |c| Pcg64::seed_from_u64(4_400 + c),
-        sidak(0.01, 1),
-    );
-    let c = r.chi2_own.as_ref().unwrap();
-    println!(
-        "broken: own χ² {:.1} dof {} p {:e}",
-        c.statistic, c.dof, c.p_value
-    );
-    assert!(!r.passed_own(), "the broken pdf passed: {c:?}");
+    assert_broken_rejected(&*b, &broken, wis[0], 500_000, 4_400);
     // Limits out of range, and one no tree fits in.
     for bad in [0, quadtree_sampler::MAX_BAKE_BYTES + 1] {
         let c = BakeConfig {
