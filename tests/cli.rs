@@ -842,6 +842,25 @@ fn bake_holds_at_most_max_bytes() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["max_bytes"].as_u64(), Some(16 << 20), "{v}");
+    // An isotropic model's default is 1 MiB.
+    let phong = dir.join("phong.bake");
+    let o = brdf(
+        &[
+            "bake",
+            "--model",
+            "phong",
+            "--theta-steps",
+            "3",
+            "--coverage-samples",
+            "0",
+            "--out",
+            phong.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let iso: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(iso["max_bytes"].as_u64(), Some(1 << 20), "{iso}");
     let free = v["bytes"].as_u64().unwrap();
     let limit = (free / 2).to_string();
     let o = bake(&["--max-bytes", &limit]);

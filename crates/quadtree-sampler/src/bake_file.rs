@@ -389,7 +389,7 @@ impl ConfigRecord {
             theta_steps: self.theta_steps,
             phi_steps: self.phi_steps,
             defensive: self.defensive,
-            max_bytes,
+            max_bytes: Some(max_bytes),
         })
     }
 }
@@ -588,7 +588,7 @@ impl BakedSampler {
     pub fn to_bytes(&self) -> Vec<u8> {
         frame(
             BAKE_FORMAT_VERSION,
-            &current_payload(self.record(), self.config().max_bytes),
+            &current_payload(self.record(), self.max_bytes()),
         )
     }
 
@@ -1005,7 +1005,7 @@ mod tests {
             );
             BakedSampler::from_bytes(&frame(
                 BAKE_FORMAT_VERSION,
-                &current_payload(record, baked.config().max_bytes),
+                &current_payload(record, baked.max_bytes()),
             ))
         };
         assert!(edit(&|_, _| {}).is_ok());
@@ -1039,7 +1039,7 @@ mod tests {
             f(&mut record.forward.slices[1].tree.volume);
             BakedSampler::from_bytes(&frame(
                 BAKE_FORMAT_VERSION,
-                &current_payload(record, baked.config().max_bytes),
+                &current_payload(record, baked.max_bytes()),
             ))
         };
         assert!(edit(&|_| {}).is_ok());
@@ -1077,7 +1077,7 @@ mod tests {
             f(&mut record.forward.slices[2].tree.packed);
             BakedSampler::from_bytes(&frame(
                 BAKE_FORMAT_VERSION,
-                &current_payload(record, baked.config().max_bytes),
+                &current_payload(record, baked.max_bytes()),
             ))
         };
         let root = baked.tables().0.slices[2].tree.raw_nodes()[0];

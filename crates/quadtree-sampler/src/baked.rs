@@ -77,11 +77,17 @@ pub const DEFAULT_PHI_STEPS: u16 = 9;
 /// variance at δ ≈ 10⁻⁵ (measured: `examples/bake_grid.rs`).
 pub const DEFAULT_DEFENSIVE: f64 = 1e-6;
 
-/// The memory a bake may hold in [`BakeConfig::default`]: 16 MiB, issue #18's goal for an
-/// anisotropic material at the default grid. The default grids of the bench sets hold
-/// 0.02–7 MiB and are not touched by it; a needle-thin anisotropic lobe (Ward αx = 1,
-/// αy = 0.001: 61 MB) is.
+/// The memory a bake of an anisotropic model may hold by default ([`BakeConfig::max_bytes`]
+/// `None`): 16 MiB, issue #18's goal for an anisotropic material at the default grid. The
+/// default grids of the anisotropic bench sets hold 0.6–3.3 MB and are not touched by it;
+/// a needle-thin lobe (Ward αx = 1, αy = 0.001: 61 MB) is.
 pub const DEFAULT_BAKE_MAX_BYTES: usize = 16 << 20;
+
+/// The memory a bake of an isotropic model may hold by default: 1 MiB, issue #18's goal for
+/// an isotropic material at the default grid. The isotropic bench sets hold 0.02–0.74 MB;
+/// a very rough He–Torrance surface (σ0 = 10 µm, τ = 0.05 µm: 2.1 MB) is held to it at
+/// E\[T\] mean 1.47 → 1.55 and warp mode's mean R − 1 at the cells' centres 0.25 → 0.41.
+pub const DEFAULT_ISOTROPIC_BAKE_MAX_BYTES: usize = 1 << 20;
 
 /// Bytes a grid tree holds per node at least: its packed node (16), its warp node (16) and
 /// its warp share (4). A first build within [`FIRST_BUILD_SHARES`]× a tree's even share of
@@ -183,14 +189,30 @@ pub struct BakeConfig {
     /// The defensive cosine share δ ∈ (0, 1) of the mixture.
     pub defensive: f64,
     /// The most bytes the bake may hold ([`BakedSampler::bytes`]), in 1 ..=
-    /// [`MAX_BAKE_BYTES`]. Default [`DEFAULT_BAKE_MAX_BYTES`] (16 MiB). A bake whose trees,
+    /// [`MAX_BAKE_BYTES`]; `None` (the default): the model's default by its symmetry,
+    /// [`DEFAULT_ISOTROPIC_BAKE_MAX_BYTES`] (1 MiB) for an isotropic model,
+    /// [`DEFAULT_BAKE_MAX_BYTES`] (16 MiB) for an anisotropic one ([`BakeConfig::max_bytes_for`];
+    /// a baked sampler's [`BakedSampler::config`] holds the limit it was baked to). A bake whose trees,
     /// built as `build` asks, would hold more has trees pruned back: of the trees over
     /// their even share, the subdivisions that save the fewest rejection trials are
     /// collapsed first, across all of them, until the bake fits (trees under their share
     /// are kept as they are): exact still, with more rejection trials (and a coarser warp
     /// proxy) in the pruned trees. A grid whose trees cannot fit even so, each within
     /// [`crate::MAX_USABLE_EXPECTED_TRIALS`], is [`BakeError::TooLarge`].
-    pub max_bytes: usize,
+    pub max_bytes: Option<usize>,
+}
+
+impl BakeConfig {
+    /// The memory limit a bake of a model with this isotropy is held to: `max_bytes`, or
+    /// its default ([`BakeConfig::max_bytes`]).
+    #[must_use]
+    pub fn max_bytes_for(&self, isotropic: bool) -> usize {
+        self.max_bytes.unwrap_or(if isotropic {
+            DEFAULT_ISOTROPIC_BAKE_MAX_BYTES
+        } else {
+            DEFAULT_BAKE_MAX_BYTES
+        })
+    }
 }
 
 impl Default for BakeConfig {
@@ -203,7 +225,7 @@ impl Default for BakeConfig {
             theta_steps: DEFAULT_THETA_STEPS,
             phi_steps: DEFAULT_PHI_STEPS,
             defensive: DEFAULT_DEFENSIVE,
-            max_bytes: DEFAULT_BAKE_MAX_BYTES,
+            max_bytes: None,
         }
     }
 }
@@ -485,16 +507,20 @@ impl BakedSampler {
             jobs.extend((0..grid.len()).map(|k| (true, k)));
         }
         let total = jobs.len();
-        if !(1..=MAX_BAKE_BYTES).contains(&config.max_bytes) {
-            return Err(BakeError::MaxBytes(config.max_bytes));
+        let max_bytes = config.max_bytes_for(symmetry.isotropic);
+        if !(1..=MAX_BAKE_BYTES).contains(&max_bytes) {
+            return Err(BakeError::MaxBytes(max_bytes));
         }
-        // What the trees may hold: the configured bytes less the sampler's own struct.
-        let room = config
-            .max_bytes
-            .saturating_sub(core::mem::size_of::<Self>());
+        // The sampler keeps the limit it was baked to (and its file records it).
+        let config = BakeConfig {
+            max_bytes: Some(max_bytes),
+            ..config
+        };
+        // What the trees may hold: the limit less the sampler's own struct.
+        let room = max_bytes.saturating_sub(core::mem::size_of::<Self>());
         let too_large = BakeError::TooLarge {
             trees: total,
-            limit: config.max_bytes,
+            limit: max_bytes,
         };
         // The first build of each tree: within FIRST_BUILD_SHARES of its even share of the
         // room (at the least bytes a node can take, and never under MIN_FIRST_NODES), so
@@ -701,10 +727,18 @@ impl BakedSampler {
         &self.brdf
     }
 
-    /// The bake's options.
+    /// The bake's options (`max_bytes` set to the limit it was baked to).
     #[must_use]
     pub fn config(&self) -> &BakeConfig {
         &self.config
+    }
+
+    /// The memory limit the sampler was baked to ([`BakeConfig::max_bytes`], resolved by
+    /// the model's symmetry where it was left to its default): [`BakedSampler::bytes`] is at
+    /// most this.
+    #[must_use]
+    pub fn max_bytes(&self) -> usize {
+        self.config.max_bytes_for(self.brdf.symmetry().isotropic)
     }
 
     /// The grid of incident directions.

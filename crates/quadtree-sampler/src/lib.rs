@@ -99,8 +99,8 @@ pub use bake_file::{BakeIoError, temporary_beside, write_atomically};
 pub use bake_grid::{BakeGrid, PhiDomain};
 pub use baked::{
     BakeConfig, BakedMode, BakedSampler, DEFAULT_BAKE_MAX_BYTES, DEFAULT_BAKE_NODE_BUDGET,
-    DEFAULT_DEFENSIVE, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, GRID_THETA_MAX_DEG, MAX_BAKE_BYTES,
-    MAX_TREES, MixtureTree, Role,
+    DEFAULT_DEFENSIVE, DEFAULT_ISOTROPIC_BAKE_MAX_BYTES, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS,
+    GRID_THETA_MAX_DEG, MAX_BAKE_BYTES, MAX_TREES, MixtureTree, Role,
 };
 pub use baked_coverage::{
     COVERAGE_LIMIT, CellCoverage, Coverage, CoverageConfig, DEFAULT_COVERAGE_SAMPLES,

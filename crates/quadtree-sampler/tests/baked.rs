@@ -823,8 +823,9 @@ fn damaged_bake_files_are_typed_errors() {
     // A resealed file with a tree's child link pointing outside the arena: a tree error.
     // (The record's last byte: the payload ends with the bake's max_bytes, a LEB128 varint.)
     let mut bad_tree = bytes.clone();
-    let varint =
-        (64 - (quadtree_sampler::DEFAULT_BAKE_MAX_BYTES as u64).leading_zeros()).div_ceil(7);
+    // (An isotropic model's default limit.)
+    let varint = (64 - (quadtree_sampler::DEFAULT_ISOTROPIC_BAKE_MAX_BYTES as u64).leading_zeros())
+        .div_ceil(7);
     let last_payload = n - 5 - varint as usize;
     bad_tree[last_payload] ^= 0x40;
     let r = BakedSampler::from_bytes(&reseal(bad_tree));
@@ -1180,7 +1181,8 @@ fn rim_leaves_follow_a_lobe_that_grows_toward_the_horizon() {
     }
 }
 
-/// A bake over its memory limit (`BakeConfig::max_bytes`) holds at most that: some of its
+/// A bake over its memory limit (`BakeConfig::max_bytes`; by default 16 MiB for an
+/// anisotropic model, 1 MiB for an isotropic one) holds at most that: some of its
 /// trees are pruned (more trials), every other tree is kept bit for bit (same E[T]);
 /// serial and parallel bakes are the same bytes; the file keeps the limit; and the pruned
 /// sampler is still exact: each sample's pdf is `pdf()`, χ² against its own pdf at off-grid
@@ -1191,9 +1193,14 @@ fn rim_leaves_follow_a_lobe_that_grows_toward_the_horizon() {
 fn a_bake_over_its_memory_limit_prunes_where_it_costs_fewest_trials() {
     let b = model("ward", &["alpha_x=0.3", "alpha_y=0.01", "kd=0"]);
     let free = BakedSampler::new(b.clone(), small()).unwrap();
+    // The default limit is the model's: 16 MiB anisotropic, 1 MiB isotropic.
+    assert_eq!(free.config().max_bytes, Some(16 << 20));
+    let iso = BakedSampler::new(model("phong", &["n=200"]), small()).unwrap();
+    assert_eq!(iso.config().max_bytes, Some(1 << 20));
+    assert_eq!(iso.max_bytes(), 1 << 20);
     let limit = free.bytes() * 8 / 10;
     let config = BakeConfig {
-        max_bytes: limit,
+        max_bytes: Some(limit),
         ..small()
     };
     let capped = BakedSampler::new(b.clone(), config).unwrap();
@@ -1219,7 +1226,8 @@ fn a_bake_over_its_memory_limit_prunes_where_it_costs_fewest_trials() {
     let bytes = capped.to_bytes();
     assert!(BakedSampler::new(b.clone(), serial).unwrap().to_bytes() == bytes);
     let back = BakedSampler::from_bytes(&bytes).unwrap();
-    assert_eq!(back.config().max_bytes, limit);
+    assert_eq!(back.config().max_bytes, Some(limit));
+    assert_eq!(back.max_bytes(), limit);
     assert!(back.to_bytes() == bytes);
     // Exact still.
     let wis = [dir(52.3, 37.0), dir(80.0, 200.0)];
@@ -1280,13 +1288,13 @@ fn a_bake_over_its_memory_limit_prunes_where_it_costs_fewest_trials() {
     // Limits out of range, and one no tree fits in.
     for bad in [0, quadtree_sampler::MAX_BAKE_BYTES + 1] {
         let c = BakeConfig {
-            max_bytes: bad,
+            max_bytes: Some(bad),
             ..small()
         };
         assert!(matches!(BakedSampler::new(b.clone(), c), Err(BakeError::MaxBytes(x)) if x == bad));
     }
     let c = BakeConfig {
-        max_bytes: 4096,
+        max_bytes: Some(4096),
         ..small()
     };
     let e = BakedSampler::new(b.clone(), c).unwrap_err();

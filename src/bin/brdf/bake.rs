@@ -5,8 +5,8 @@ use crate::CliError;
 use crate::sample::MapArg;
 use brdf_sampling::quadtree_sampler::{
     BakeConfig, BakedMode, BakedSampler, COVERAGE_LIMIT, Coverage, CoverageConfig,
-    DEFAULT_BAKE_MAX_BYTES, DEFAULT_COVERAGE_SAMPLES, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS,
-    MAX_COVERAGE_SAMPLES, Role, target_limit,
+    DEFAULT_COVERAGE_SAMPLES, DEFAULT_PHI_STEPS, DEFAULT_THETA_STEPS, MAX_COVERAGE_SAMPLES, Role,
+    target_limit,
 };
 use brdf_sampling::{Brdf, DiskMap};
 use serde_json::json;
@@ -39,9 +39,10 @@ pub(crate) struct BakeArgs {
     /// grid whose trees would hold more has trees pruned back (the subdivisions that save
     /// the fewest rejection trials collapsed first, across the trees over their even
     /// share), exact still but with more rejection trials a sample and a coarser warp proxy
-    /// (16 MiB by default).
-    #[arg(long, value_name = "BYTES", default_value_t = DEFAULT_BAKE_MAX_BYTES)]
-    max_bytes: usize,
+    /// (by default 1 MiB for an isotropic model, 16 MiB for an anisotropic one: the JSON's
+    /// `max_bytes`).
+    #[arg(long, value_name = "BYTES")]
+    max_bytes: Option<usize>,
     /// Samples drawn at each checked incident direction when checking that the grid covers
     /// the material between its trees (a tree built at the centre of every grid cell, and
     /// halfway from the last row to the horizon, draws them; the JSON's `coverage`, and a
@@ -130,7 +131,7 @@ pub(crate) fn run(
         drop(bar);
         // Trees cut short with the bake at its memory limit: pruning, not only the grid,
         // may be what costs (a finer grid at the same limit prunes more).
-        let pruned = stopped > 0 && baked.bytes() >= baked.config().max_bytes / 10 * 9;
+        let pruned = stopped > 0 && baked.bytes() >= baked.max_bytes() / 10 * 9;
         if let Some(line) = coverage_warning(&c, brdf.symmetry().isotropic, pruned) {
             eprintln!("brdf: warning: {line}");
         }
@@ -157,8 +158,9 @@ pub(crate) fn run(
         "map": config.build.map.name(),
         "defensive": config.defensive,
         "max_expected_trials": max,
-        // The memory the bake was allowed (`--max-bytes`); `bytes` is at most this.
-        "max_bytes": config.max_bytes,
+        // The memory the bake was allowed (`--max-bytes`, or the model's default); `bytes`
+        // is at most this.
+        "max_bytes": baked.max_bytes(),
         // Trees whose node or evaluation budget ran out before the split rule (or
         // --target-trials) was met: exact still, with more trials a sample.
         "budget_exhausted_trees": stopped,
