@@ -613,22 +613,21 @@ impl BakedSampler {
                 fixed + sizes.iter().sum::<usize>() <= room
             })
             .ok_or_else(|| too_large.clone())?;
-            let mut count = alloc::vec![0usize; built.len()];
-            for ((j, _), k) in prunable.iter().zip(counts) {
-                count[*j] = k;
+            // Each kept tree's collapses to take, by grid index (none for the others).
+            let mut take: Vec<Option<(Prunable, usize)>> = built.iter().map(|_| None).collect();
+            for (((j, _), p), k) in prunable.iter().zip(orders).zip(counts) {
+                take[*j] = (k > 0).then_some((p, k));
             }
-            let mut order = orders.into_iter();
-            let work = built
-                .into_iter()
-                .enumerate()
-                .map(|(j, (s, q))| (j, s, q.map(|q| (q, order.next().expect("one a kept tree")))))
-                .collect();
-            run_jobs(work, config.build.parallel, |(j, s, q)| match q {
-                Some((q, p)) if count[j] > 0 => {
-                    let (adj, k) = jobs[j];
-                    Slice::of_tree(model_of(adj), grid.direction(k), &pruned(&q, &p, count[j]))
+            let work = built.into_iter().zip(take).enumerate().collect();
+            run_jobs(work, config.build.parallel, |(j, ((s, q), take))| {
+                match (q, take) {
+                    (Some(mut q), Some((p, k))) => {
+                        q.collapse(&p.order[..k]);
+                        let (adj, k) = jobs[j];
+                        Slice::of_tree(model_of(adj), grid.direction(k), &q)
+                    }
+                    _ => s,
                 }
-                _ => s,
             })
         } else {
             built.into_iter().map(|(s, _)| s).collect()
