@@ -21,10 +21,10 @@
 //! serial and parallel bakes prune alike. A tree is never pruned past
 //! [`crate::MAX_USABLE_EXPECTED_TRIALS`].
 
-use crate::tree::Quadtree;
+use crate::tree::{HeapKey, Quadtree};
 use alloc::collections::BinaryHeap;
 use alloc::vec::Vec;
-use core::cmp::Ordering;
+use core::cmp::Reverse;
 
 /// A tree a bake may prune: its collapses in order, as far as E\[T\] stays usable, and its
 /// volume (the live leaves' v1, which E\[T\] divides by).
@@ -72,57 +72,24 @@ impl Prunable {
     }
 }
 
-/// The next collapse of one tree, ranked by the E\[T\] it adds (least first), then by tree.
-#[derive(PartialEq)]
-struct Next {
-    cost: f64,
-    tree: u32,
-    step: u32,
-}
-
-impl Eq for Next {}
-
-impl PartialOrd for Next {
-    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-        Some(self.cmp(o))
-    }
-}
-
-impl Ord for Next {
-    // Reversed: the heap's greatest is the cheapest.
-    fn cmp(&self, o: &Self) -> Ordering {
-        o.cost
-            .total_cmp(&self.cost)
-            .then(o.tree.cmp(&self.tree))
-            .then(o.step.cmp(&self.step))
-    }
-}
-
 /// Every collapse of `trees`, as the tree it belongs to, in the bake's ranking: at each
 /// step the cheapest next collapse of any tree (a tree's own collapses stay in its order,
 /// which pruning needs: a prefix of it is a tree).
 pub(crate) fn ranking(trees: &[Prunable]) -> Vec<u32> {
-    let mut heap: BinaryHeap<Next> = trees
+    // Each tree's next collapse: (the E[T] it adds, tree, step), least first (ties by tree).
+    let mut heap: BinaryHeap<Reverse<(HeapKey, u32, u32)>> = trees
         .iter()
         .enumerate()
         .filter(|(_, t)| !t.order.is_empty())
-        .map(|(k, t)| Next {
-            cost: t.cost(0),
-            tree: k as u32,
-            step: 0,
-        })
+        .map(|(k, t)| Reverse((HeapKey(t.cost(0)), k as u32, 0)))
         .collect();
     let mut ranked = Vec::with_capacity(trees.iter().map(|t| t.order.len()).sum());
-    while let Some(Next { tree, step, .. }) = heap.pop() {
+    while let Some(Reverse((_, tree, step))) = heap.pop() {
         ranked.push(tree);
         let t = &trees[tree as usize];
         let next = step as usize + 1;
         if next < t.order.len() {
-            heap.push(Next {
-                cost: t.cost(next),
-                tree,
-                step: next as u32,
-            });
+            heap.push(Reverse((HeapKey(t.cost(next)), tree, next as u32)));
         }
     }
     ranked

@@ -10,7 +10,7 @@ use crate::proposal::Proposal;
 use alloc::collections::BinaryHeap;
 use alloc::vec::Vec;
 use brdf_core::{Brdf, DiskMap};
-use core::cmp::Ordering;
+use core::cmp::{Ordering, Reverse};
 use core::sync::atomic::{AtomicU64, AtomicUsize, Ordering as AtomicOrdering};
 use glam::{DVec2, Vec3};
 
@@ -175,6 +175,31 @@ impl TreeStats {
             }
         }
         self.expected_trials = if v1s > 0.0 { boxes / v1s } else { 0.0 };
+    }
+}
+
+/// An f64 ordered totally ([`f64::total_cmp`]), for the build's and the pruning's heaps:
+/// keys are finite there, so this is their numeric order.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct HeapKey(pub(crate) f64);
+
+impl PartialEq for HeapKey {
+    fn eq(&self, o: &Self) -> bool {
+        self.cmp(o) == Ordering::Equal
+    }
+}
+
+impl Eq for HeapKey {}
+
+impl PartialOrd for HeapKey {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
+impl Ord for HeapKey {
+    fn cmp(&self, o: &Self) -> Ordering {
+        self.0.total_cmp(&o.0)
     }
 }
 
@@ -667,20 +692,8 @@ impl Quadtree {
         target: f64,
         pending: &mut Vec<Pending>,
     ) {
-        #[derive(PartialEq)]
-        struct Waste(f64, u32);
-        impl Eq for Waste {}
-        impl PartialOrd for Waste {
-            fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-                Some(self.cmp(o))
-            }
-        }
-        impl Ord for Waste {
-            // Largest waste first; ties by lower index, so the order is total and fixed.
-            fn cmp(&self, o: &Self) -> Ordering {
-                self.0.total_cmp(&o.0).then(o.1.cmp(&self.1))
-            }
-        }
+        // Largest waste first; ties by lower index, so the order is total and fixed.
+        type Waste = (HeapKey, Reverse<u32>);
         const BATCH: usize = 16;
         let cfg = ctx.config;
         /// The live leaves' box volumes and v1, and `floor`: each counted at the least box
@@ -698,7 +711,7 @@ impl Quadtree {
                 self.v1s += n.v1;
                 let waste = n.reducible_waste(cfg.bound_safety);
                 if n.depth < cfg.max_depth && waste > 0.0 {
-                    heap.push(Waste(waste, i));
+                    heap.push((HeapKey(waste), Reverse(i)));
                     self.floor += cfg.bound_safety * n.v1;
                 } else {
                     self.floor += n.box_volume();
@@ -753,7 +766,7 @@ impl Quadtree {
             let (mut batch, mut removable) = (Vec::with_capacity(BATCH), 0.0);
             while batch.len() < BATCH.min(room) && removable < excess {
                 match heap.pop() {
-                    Some(Waste(w, i)) => {
+                    Some((HeapKey(w), Reverse(i))) => {
                         batch.push(i);
                         removable += w * cfg.bound_safety;
                     }
@@ -815,29 +828,17 @@ impl Quadtree {
         // Whether each node is a leaf as the collapses so far leave it.
         let mut leaf: Vec<bool> = nodes.iter().map(Node::is_leaf).collect();
         // (added box volume, index), smallest first.
-        #[derive(PartialEq)]
-        struct Twig(f64, u32);
-        impl Eq for Twig {}
-        impl PartialOrd for Twig {
-            fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-                Some(self.cmp(o))
-            }
-        }
-        impl Ord for Twig {
-            fn cmp(&self, o: &Self) -> Ordering {
-                o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
-            }
-        }
+        type Twig = Reverse<(HeapKey, u32)>;
         let twig = |leaf: &[bool], i: usize| {
             let c = nodes[i].first_child as usize;
             (!leaf[i] && leaf[c..c + 4].iter().all(|&l| l)).then(|| {
                 let children: f64 = nodes[c..c + 4].iter().map(live_box).sum();
-                Twig(live_box(&nodes[i]) - children, i as u32)
+                Reverse((HeapKey(live_box(&nodes[i]) - children), i as u32))
             })
         };
         let mut heap: BinaryHeap<Twig> = (0..n).filter_map(|i| twig(&leaf, i)).collect();
         let mut order = Vec::with_capacity(n / 4);
-        while let Some(Twig(added, i)) = heap.pop() {
+        while let Some(Reverse((HeapKey(added), i))) = heap.pop() {
             order.push((i, added));
             let i = i as usize;
             leaf[i] = true;
