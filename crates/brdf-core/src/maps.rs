@@ -60,23 +60,22 @@ pub fn disk_to_square_concentric(d: Vec2) -> Vec2 {
 #[inline]
 #[must_use]
 pub fn disk_to_square_concentric_f64(d: DVec2) -> DVec2 {
-    use core::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
     let r = m::sqrt(d.x * d.x + d.y * d.y);
     if r == 0.0 {
         return DVec2::ZERO;
     }
-    let mut phi = m::atan2(d.y, d.x);
-    if phi < -FRAC_PI_4 {
-        phi += 2.0 * PI;
-    }
-    if phi < FRAC_PI_4 {
-        DVec2::new(r, r * phi / FRAC_PI_4)
-    } else if phi < 3.0 * FRAC_PI_4 {
-        DVec2::new(-r * (phi - FRAC_PI_2) / FRAC_PI_4, r)
-    } else if phi < 5.0 * FRAC_PI_4 {
-        DVec2::new(-r, -r * (phi - PI) / FRAC_PI_4)
+    // The sector is the larger coordinate's: |x| ≥ |y| gives the square's x = ±r and
+    // y = ±r·φ/(π/4), φ = atan(y/x) the angle from the nearer x half-axis (the same for the
+    // y sectors with the roles swapped); the ratio's arctangent alone, in plain arithmetic.
+    let x_sector = d.x.abs() >= d.y.abs();
+    let (along, across) = if x_sector { (d.x, d.y) } else { (d.y, d.x) };
+    let side = r.copysign(along);
+    let t = m::atan_ratio(across, along) * (1.0 / core::f64::consts::FRAC_PI_4);
+    let (big, small) = (side, side * t);
+    if x_sector {
+        DVec2::new(big, small)
     } else {
-        DVec2::new(-r * (3.0 * FRAC_PI_2 - phi) / FRAC_PI_4, -r)
+        DVec2::new(small, big)
     }
 }
 

@@ -264,7 +264,7 @@ impl<B: Brdf> WarpSampler<B> {
             return None;
         }
         // The leaf `pdf` finds for the returned direction. Only a point within
-        // ROUNDING_MARGIN of an edge pays for the inverse map (an atan2: per-wi phong
+        // ROUNDING_MARGIN of an edge pays for the inverse map (an arctangent: per-wi phong
         // n = 1000 took 106 instead of 84 ns when every sample did); `leaf_at`, which sends a
         // point on a split line to the upper side over dyadic (exact) squares, finds the
         // drawn leaf exactly when the point lies in its half-open square.
