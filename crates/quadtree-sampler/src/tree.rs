@@ -1143,6 +1143,19 @@ mod tests {
         ]
     }
 
+    /// A serial build's estimate of the total volume, its integration floor and the tree's
+    /// volume.
+    fn serial_estimate(brdf: &dyn Brdf, wi: Vec3, map: DiskMap) -> (f64, f64, f64) {
+        let config = BuildConfig {
+            map,
+            parallel: false,
+            ..BuildConfig::default()
+        };
+        let (ctx, cells) = Context::new(brdf, wi, config);
+        let tree = Quadtree::build(&ctx, cells).unwrap();
+        (ctx.estimate, ctx.tol_floor, tree.volume())
+    }
+
     /// The scale of the integration's absolute floor is the tree's volume within 10 % even
     /// where the root's points miss the lobe (it was 0 there, and with it the floor: every
     /// node on the lobe's flanks was refined to 10⁻⁶ of its own tiny value, below the noise
@@ -1152,22 +1165,14 @@ mod tests {
     fn a_lobe_the_roots_points_miss_still_sets_the_floor() {
         for (brdf, wi) in missed_lobes() {
             for map in [DiskMap::Orthographic, DiskMap::Concentric] {
-                let config = BuildConfig {
-                    map,
-                    parallel: false,
-                    ..BuildConfig::default()
-                };
-                let (ctx, cells) = Context::new(&*brdf, wi, config);
-                let tree = Quadtree::build(&ctx, cells).unwrap();
-                let ratio = ctx.estimate / tree.volume();
+                let (estimate, tol_floor, volume) = serial_estimate(&*brdf, wi, map);
+                let ratio = estimate / volume;
                 assert!(
                     (0.9..1.1).contains(&ratio),
-                    "{} {map:?}: estimate {:e}, volume {:e}",
+                    "{} {map:?}: estimate {estimate:e}, volume {volume:e}",
                     brdf.name(),
-                    ctx.estimate,
-                    tree.volume()
                 );
-                let floor = ctx.tol_floor / tree.volume();
+                let floor = tol_floor / volume;
                 assert!(
                     (0.9e-8..1.1e-8).contains(&floor),
                     "{} {map:?}: floor {floor:e} of the volume",
@@ -1189,18 +1194,11 @@ mod tests {
         for theta in [0.0f32, 30.0, 60.0] {
             let t = theta.to_radians();
             let wi = Vec3::new(t.sin(), 0.0, t.cos());
-            let config = BuildConfig {
-                parallel: false,
-                ..BuildConfig::default()
-            };
-            let (ctx, cells) = Context::new(&*smooth, wi, config);
-            let tree = Quadtree::build(&ctx, cells).unwrap();
-            let ratio = ctx.estimate / tree.volume();
+            let (estimate, _, volume) = serial_estimate(&*smooth, wi, DiskMap::Orthographic);
+            let ratio = estimate / volume;
             assert!(
                 (0.25..4.0).contains(&ratio),
-                "θi {theta}°: estimate {:e}, volume {:e}",
-                ctx.estimate,
-                tree.volume()
+                "θi {theta}°: estimate {estimate:e}, volume {volume:e}",
             );
         }
     }
